@@ -1,0 +1,79 @@
+"""One place that initialises Warp, picks the device and launches kernels.
+
+``pick(None)`` is "cuda" when a CUDA device is present, else "cpu"; the environment
+variable WARPVOL_DEVICE overrides it. Warp runs a CPU launch on one thread, so
+``launch`` splits a CPU launch into one index range per core and runs them from a thread
+pool (a launch releases the GIL); each kernel takes the range start as its first argument.
+"""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import ThreadPoolExecutor
+
+import warp as wp
+
+
+class DeviceError(ValueError):
+    """A device that does not exist on this machine was asked for."""
+
+
+_pool: ThreadPoolExecutor | None = None
+
+
+def init():
+    wp.config.quiet = True
+    wp.init()  # returns at once after the first call
+
+
+def available() -> list[str]:
+    init()
+    return [str(d) for d in wp.get_devices()]
+
+
+def pick(name: str | None = None) -> str:
+    """The Warp device to use: ``name``, else $WARPVOL_DEVICE, else CUDA if present, else CPU."""
+    init()
+    name = name or os.environ.get("WARPVOL_DEVICE") or None
+    devices = available()
+    if name is None:
+        return "cuda:0" if "cuda:0" in devices else "cpu"
+    want = "cuda:0" if name == "cuda" else name
+    if want not in devices:
+        raise DeviceError(f"device {name!r} is not available (allowed: {', '.join(devices)})")
+    return want
+
+
+def threads() -> int:
+    """CPU worker threads for split launches: WARPVOL_THREADS, else the usable cores."""
+    env = os.environ.get("WARPVOL_THREADS")
+    if env:
+        return max(1, int(env))
+    return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
+
+
+def launch(kernel, dim: int, inputs: list, device: str, split: bool = True):
+    """Launch ``kernel`` over ``dim`` threads; its first argument is the index offset."""
+    global _pool
+    n = threads() if split and str(device) == "cpu" else 1
+    if n <= 1 or dim < 2 * n:
+        wp.launch(kernel, dim=dim, inputs=[0, *inputs], device=device)
+        return
+    if _pool is None or _pool._max_workers != n:
+        _pool = ThreadPoolExecutor(max_workers=n)
+    # interleave ranges into 4 n chunks so uneven pixels (a bright corner) balance out
+    chunks = 4 * n
+    bounds = [dim * k // chunks for k in range(chunks + 1)]
+    # the first chunk runs on this thread, so the module is compiled or loaded exactly once
+    wp.launch(kernel, dim=bounds[1], inputs=[0, *inputs], device=device)
+    futures = [
+        _pool.submit(wp.launch, kernel, dim=bounds[k + 1] - bounds[k], inputs=[bounds[k], *inputs], device=device)
+        for k in range(1, chunks)
+        if bounds[k + 1] > bounds[k]
+    ]
+    for f in futures:
+        f.result()
+
+
+def synchronize(device: str):
+    wp.synchronize_device(device)

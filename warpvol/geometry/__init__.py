@@ -1,0 +1,1 @@
+"""Triangle meshes (wp.Mesh), cameras, depth and shadow maps."""

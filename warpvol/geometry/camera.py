@@ -1,0 +1,43 @@
+"""Pinhole camera: look_at, vertical field of view, rays through pixel positions."""
+
+import math
+
+import numpy as np
+import warp as wp
+
+from ..scene.model import Camera
+
+
+@wp.struct
+class PinholeCamera:
+    origin: wp.vec3
+    forward: wp.vec3  # unit
+    right: wp.vec3  # scaled by tan(fov_y / 2) * aspect
+    up: wp.vec3  # scaled by tan(fov_y / 2)
+    width: int
+    height: int
+
+
+@wp.func
+def camera_ray(cam: PinholeCamera, px: float, py: float) -> wp.vec3:
+    """Unit direction through image position (px, py) in pixels; row 0 is the top."""
+    sx = 2.0 * px / float(cam.width) - 1.0
+    sy = 1.0 - 2.0 * py / float(cam.height)
+    return wp.normalize(cam.forward + sx * cam.right + sy * cam.up)
+
+
+def pinhole(camera: Camera) -> PinholeCamera:
+    o = np.asarray(camera.origin, np.float64)
+    f = np.asarray(camera.target, np.float64) - o
+    f /= np.linalg.norm(f)
+    r = np.cross(f, np.asarray(camera.up, np.float64))
+    r /= np.linalg.norm(r)
+    u = np.cross(r, f)
+    th = math.tan(math.radians(camera.fov_y) / 2.0)
+    cam = PinholeCamera()
+    cam.origin = wp.vec3(*o)
+    cam.forward = wp.vec3(*f)
+    cam.right = wp.vec3(*(r * th * camera.width / camera.height))
+    cam.up = wp.vec3(*(u * th))
+    cam.width, cam.height = camera.width, camera.height
+    return cam

@@ -1,0 +1,43 @@
+"""Dense extinction grids: cell-centred samples, trilinear lookup, zero outside the bounds.
+
+``data`` holds grids flattened with x fastest (the .npy layout [z, y, x]); sample (i, j, k)
+sits at bounds_min + (i + 0.5, j + 0.5, k + 0.5) * cell. Inside the half-cell border the
+lookup clamps to the outermost samples.
+"""
+
+import numpy as np
+import warp as wp
+
+
+@wp.func
+def grid_value(data: wp.array(dtype=float), offset: int, dims: wp.vec3i, ix: int, iy: int, iz: int) -> float:
+    return data[offset + (iz * dims[1] + iy) * dims[0] + ix]
+
+
+@wp.func
+def grid_trilinear(data: wp.array(dtype=float), offset: int, dims: wp.vec3i, bmin: wp.vec3, bmax: wp.vec3, x: wp.vec3) -> float:
+    if x[0] < bmin[0] or x[1] < bmin[1] or x[2] < bmin[2] or x[0] > bmax[0] or x[1] > bmax[1] or x[2] > bmax[2]:
+        return 0.0
+    g = wp.cw_div(x - bmin, bmax - bmin)
+    fx = wp.clamp(g[0] * float(dims[0]) - 0.5, 0.0, float(dims[0] - 1))
+    fy = wp.clamp(g[1] * float(dims[1]) - 0.5, 0.0, float(dims[1] - 1))
+    fz = wp.clamp(g[2] * float(dims[2]) - 0.5, 0.0, float(dims[2] - 1))
+    x0 = wp.min(int(fx), wp.max(dims[0] - 2, 0))
+    y0 = wp.min(int(fy), wp.max(dims[1] - 2, 0))
+    z0 = wp.min(int(fz), wp.max(dims[2] - 2, 0))
+    x1 = wp.min(x0 + 1, dims[0] - 1)
+    y1 = wp.min(y0 + 1, dims[1] - 1)
+    z1 = wp.min(z0 + 1, dims[2] - 1)
+    tx = fx - float(x0)
+    ty = fy - float(y0)
+    tz = fz - float(z0)
+    c00 = grid_value(data, offset, dims, x0, y0, z0) * (1.0 - tx) + grid_value(data, offset, dims, x1, y0, z0) * tx
+    c10 = grid_value(data, offset, dims, x0, y1, z0) * (1.0 - tx) + grid_value(data, offset, dims, x1, y1, z0) * tx
+    c01 = grid_value(data, offset, dims, x0, y0, z1) * (1.0 - tx) + grid_value(data, offset, dims, x1, y0, z1) * tx
+    c11 = grid_value(data, offset, dims, x0, y1, z1) * (1.0 - tx) + grid_value(data, offset, dims, x1, y1, z1) * tx
+    return (c00 * (1.0 - ty) + c10 * ty) * (1.0 - tz) + (c01 * (1.0 - ty) + c11 * ty) * tz
+
+
+def grid_majorant(density: np.ndarray) -> float:
+    """Trilinear interpolation never exceeds the largest sample."""
+    return float(np.max(density))

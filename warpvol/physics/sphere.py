@@ -1,0 +1,32 @@
+"""Direction sets on the unit sphere and nearest-direction lookup.
+
+The Fibonacci (golden-spiral) set places D directions with equal area per direction
+(each owns 4 pi / D sr) and near-uniform spacing; González, Math. Geosci. 2010.
+"""
+
+import numpy as np
+import warp as wp
+
+
+def fibonacci_directions(count: int) -> np.ndarray:
+    """``count`` unit vectors, shape (count, 3) float32, spread evenly over the sphere."""
+    if count < 1:
+        raise ValueError(f"direction count must be >= 1, got {count}")
+    i = np.arange(count, dtype=np.float64) + 0.5
+    z = 1.0 - 2.0 * i / count
+    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    phi = np.pi * (3.0 - np.sqrt(5.0)) * i
+    return np.stack([r * np.cos(phi), z, r * np.sin(phi)], axis=1).astype(np.float32)
+
+
+@wp.func
+def nearest_direction(dirs: wp.array(dtype=wp.vec3), w: wp.vec3) -> int:
+    """Index of the direction in ``dirs`` closest to w (largest dot product)."""
+    best = int(0)
+    best_dot = float(-2.0)
+    for i in range(dirs.shape[0]):
+        c = wp.dot(dirs[i], w)
+        if c > best_dot:
+            best_dot = c
+            best = i
+    return best

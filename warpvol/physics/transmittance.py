@@ -1,0 +1,42 @@
+"""Optical depth and Beer-Lambert transmittance that stay finite for any input.
+
+``tau`` is optical depth (dimensionless), ``sigma_t`` extinction in 1/unit. For tau
+from 0 to 1e6 (and +inf) the transmittance is a finite number in [0, 1]; NaN never
+comes out unless NaN goes in.
+"""
+
+import warp as wp
+
+from .constants import INF
+
+
+@wp.func
+def optical_depth(sigma_t: float, length: float) -> float:
+    """tau = sigma_t * length, with 0 for an empty segment or an empty medium (no 0*inf)."""
+    if length <= 0.0 or sigma_t <= 0.0:
+        return 0.0
+    return wp.min(sigma_t * length, INF)
+
+
+@wp.func
+def transmittance(tau: float) -> float:
+    """exp(-tau), exactly 0 past float32's range instead of a denormal or NaN."""
+    if tau <= 0.0:
+        return 1.0
+    if tau > 104.0:  # expf(-104) is below the smallest float32 denormal
+        return 0.0
+    return wp.exp(-tau)
+
+
+@wp.func
+def transmittance_rgb(tau: wp.vec3) -> wp.vec3:
+    return wp.vec3(transmittance(tau[0]), transmittance(tau[1]), transmittance(tau[2]))
+
+
+@wp.func
+def scattered_fraction(sigma_t: float, length: float) -> float:
+    """1 - exp(-sigma_t * length): the fraction of light a slab removes, stable as sigma_t -> 0."""
+    tau = optical_depth(sigma_t, length)
+    if tau < 1.0e-4:
+        return tau * (1.0 - 0.5 * tau)
+    return 1.0 - transmittance(tau)

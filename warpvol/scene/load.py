@@ -1,0 +1,393 @@
+"""TOML (or dict) -> Scene, validated before any kernel runs.
+
+Every problem raises ``SceneError`` with one line: ``FILE: KEY: what is wrong (allowed: RANGE)``.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import os
+import sys
+from typing import Any
+
+import numpy as np
+
+from ..geometry import shapes
+from .model import (
+    Camera,
+    GridMedium,
+    HomogeneousMedium,
+    Light,
+    Medium,
+    ParticleMedium,
+    Phase,
+    RBFMedium,
+    Scene,
+    Surface,
+)
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+
+class SceneError(ValueError):
+    """A scene file or dict that cannot be rendered; the message names file, key and range."""
+
+
+_REQUIRED = object()
+
+
+class _Table:
+    """Reads one TOML table, checking types and ranges, and reports keys nobody read."""
+
+    def __init__(self, data: Any, where: str, source: str):
+        self.source = source
+        self.where = where
+        if not isinstance(data, dict):
+            self.fail(where, f"must be a table, got {type(data).__name__}", "a table of keys")
+        self.data = data
+        self.used: set[str] = set()
+
+    def key(self, name: str) -> str:
+        return f"{self.where}.{name}" if self.where else name
+
+    def fail(self, key: str, problem: str, allowed: str):
+        raise SceneError(f"{self.source}: {key}: {problem} (allowed: {allowed})")
+
+    def raw(self, name: str, default=_REQUIRED, allowed: str = ""):
+        self.used.add(name)
+        if name not in self.data:
+            if default is _REQUIRED:
+                self.fail(self.key(name), "missing", allowed or "see DESIGN.md")
+            return default
+        return self.data[name]
+
+    def number(self, name, default=_REQUIRED, lo=-math.inf, hi=math.inf, lo_open=False, hi_open=False, integer=False):
+        allowed = _range_text(lo, hi, lo_open, hi_open, integer)
+        v = self.raw(name, default, allowed)
+        if v is default and default is not _REQUIRED:
+            return v
+        ok_type = isinstance(v, int) if integer else isinstance(v, (int, float))
+        if isinstance(v, bool) or not ok_type:
+            self.fail(self.key(name), f"expected {'an integer' if integer else 'a number'}, got {v!r}", allowed)
+        if not math.isfinite(v):
+            self.fail(self.key(name), f"{v} is not finite", allowed)
+        if v < lo or v > hi or (lo_open and v == lo) or (hi_open and v == hi):
+            self.fail(self.key(name), f"{v} is out of range", allowed)
+        return int(v) if integer else float(v)
+
+    def vec3(self, name, default=_REQUIRED, lo=-math.inf, hi=math.inf, scalar_ok=False, lo_open=False):
+        allowed = ("a number or " if scalar_ok else "") + "[x, y, z] with each in " + _range_text(lo, hi, lo_open, False, False)
+        v = self.raw(name, default, allowed)
+        if v is default and default is not _REQUIRED:
+            return tuple(float(x) for x in v) if isinstance(v, (list, tuple)) else v
+        if scalar_ok and isinstance(v, (int, float)) and not isinstance(v, bool):
+            v = [v, v, v]
+        if not isinstance(v, (list, tuple)) or len(v) != 3 or any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in v):
+            self.fail(self.key(name), f"expected 3 numbers, got {v!r}", allowed)
+        for x in v:
+            if not math.isfinite(x):
+                self.fail(self.key(name), f"{v!r} contains a non-finite value", allowed)
+            if x < lo or x > hi or (lo_open and x == lo):
+                self.fail(self.key(name), f"{v!r} is out of range", allowed)
+        return tuple(float(x) for x in v)
+
+    def string(self, name, default=_REQUIRED, choices=None):
+        allowed = " | ".join(choices) if choices else "a string"
+        v = self.raw(name, default, allowed)
+        if not isinstance(v, str):
+            self.fail(self.key(name), f"expected a string, got {v!r}", allowed)
+        if choices and v not in choices:
+            self.fail(self.key(name), f"unknown value {v!r}", allowed)
+        return v
+
+    def boolean(self, name, default=_REQUIRED):
+        v = self.raw(name, default, "true | false")
+        if not isinstance(v, bool):
+            self.fail(self.key(name), f"expected true or false, got {v!r}", "true | false")
+        return v
+
+    def path(self, name, base_dir):
+        p = self.string(name)
+        full = p if os.path.isabs(p) else os.path.join(base_dir, p)
+        if not os.path.isfile(full):
+            self.fail(self.key(name), f"file {full!r} not found", "an existing file, relative to the scene file")
+        return full
+
+    def finish(self):
+        extra = sorted(set(self.data) - self.used)
+        if extra:
+            self.fail(self.key(extra[0]), "unknown key", ", ".join(sorted(self.used)))
+
+
+def _range_text(lo, hi, lo_open, hi_open, integer):
+    kind = "integer" if integer else "number"
+    if lo == -math.inf and hi == math.inf:
+        return f"any finite {kind}"
+    left = "(" if lo_open else "["
+    right = ")" if hi_open or hi == math.inf else "]"
+    return f"{kind} in {left}{lo:g}, {hi:g}{right}".replace("inf", "inf")
+
+
+def _array(t: _Table, name: str, value, shape_tail: tuple, what: str) -> np.ndarray:
+    try:
+        a = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        t.fail(t.key(name), f"cannot be read as numbers", what)
+    if a.ndim != 1 + len(shape_tail) or tuple(a.shape[1:]) != shape_tail:
+        if not (a.size == 0 and shape_tail):
+            t.fail(t.key(name), f"has shape {a.shape}", what)
+        a = a.reshape((0,) + shape_tail)
+    if not np.all(np.isfinite(a)):
+        t.fail(t.key(name), "contains NaN or Inf", what)
+    return a.astype(np.float32)
+
+
+def _camera(data, source) -> Camera:
+    t = _Table(data, "camera", source)
+    cam = Camera(
+        origin=t.vec3("origin"),
+        target=t.vec3("target"),
+        up=t.vec3("up", (0.0, 1.0, 0.0)),
+        fov_y=t.number("fov_y", 40.0, 0.0, 180.0, lo_open=True, hi_open=True),
+        width=t.number("width", 128, 1, 16384, integer=True),
+        height=t.number("height", 96, 1, 16384, integer=True),
+    )
+    t.finish()
+    fwd = np.subtract(cam.target, cam.origin)
+    if np.linalg.norm(fwd) == 0:
+        t.fail("camera.target", "equals camera.origin", "a point other than the origin")
+    if np.linalg.norm(np.cross(fwd, cam.up)) <= 1e-6 * np.linalg.norm(fwd) * np.linalg.norm(cam.up):
+        t.fail("camera.up", "is parallel to the viewing direction (or zero)", "a vector not parallel to target - origin")
+    return cam
+
+
+def _light(data, where, source) -> Light:
+    t = _Table(data, where, source)
+    kind = t.string("type", choices=["point", "spot", "directional"])
+    if kind == "directional":
+        direction = t.vec3("direction")
+        if np.linalg.norm(direction) == 0:
+            t.fail(t.key("direction"), "is the zero vector", "a non-zero vector")
+        light = Light(kind, strength=t.vec3("irradiance", lo=0.0, scalar_ok=True),
+                      direction=tuple((np.asarray(direction) / np.linalg.norm(direction)).tolist()))
+    else:
+        light = Light(kind, strength=t.vec3("intensity", lo=0.0, scalar_ok=True), position=t.vec3("position"))
+        if kind == "spot":
+            direction = t.vec3("direction")
+            if np.linalg.norm(direction) == 0:
+                t.fail(t.key("direction"), "is the zero vector", "a non-zero vector")
+            light.direction = tuple((np.asarray(direction) / np.linalg.norm(direction)).tolist())
+            light.outer_angle = t.number("outer_angle", 30.0, 0.0, 180.0, lo_open=True)
+            light.inner_angle = t.number("inner_angle", min(20.0, light.outer_angle), 0.0, light.outer_angle)
+    t.finish()
+    return light
+
+
+def _phase(data, where, source) -> Phase:
+    if data is None:
+        return Phase()
+    t = _Table(data, where, source)
+    kind = t.string("type", choices=["isotropic", "hg", "cornette_shanks", "rayleigh", "tabulated"])
+    ph = Phase(kind)
+    if kind in ("hg", "cornette_shanks"):
+        ph.g = t.number("g", 0.0, -1.0, 1.0, lo_open=True, hi_open=True)
+    if kind == "tabulated":
+        v = _array(t, "values", t.raw("values", allowed="list of >= 2 non-negative numbers"), (), "list of >= 2 non-negative numbers")
+        if v.size < 2 or np.any(v < 0) or v.sum() <= 0:
+            t.fail(t.key("values"), "needs >= 2 non-negative values, not all zero", "list of >= 2 non-negative numbers")
+        ph.values = v
+    t.finish()
+    return ph
+
+
+def _medium(data, where, source, base_dir) -> Medium:
+    t = _Table(data, where, source)
+    kind = t.string("type", choices=["homogeneous", "grid", "rbf", "particles"])
+    common = dict(
+        albedo=t.vec3("albedo", lo=0.0, hi=1.0, scalar_ok=True),
+        phase=_phase(t.raw("phase", None), t.key("phase"), source),
+        static=t.boolean("static", True),
+    )
+    if kind == "homogeneous":
+        shape = t.string("shape", "box", choices=["box", "sphere"])
+        m = HomogeneousMedium(**common, shape=shape, center=t.vec3("center", (0.0, 0.0, 0.0)),
+                              sigma_t=t.vec3("sigma_t", lo=0.0, scalar_ok=True))
+        if shape == "box":
+            m.size = t.vec3("size", lo=0.0, lo_open=True)
+        else:
+            m.radius = t.number("radius", lo=0.0, lo_open=True)
+    elif kind == "grid":
+        if "density" in t.data:  # in-memory array, from a dict
+            dens = np.asarray(t.raw("density"), dtype=np.float64)
+        else:
+            path = t.path("file", base_dir)
+            try:
+                dens = np.load(path)
+            except Exception as exc:  # noqa: BLE001 - report any unreadable file the same way
+                t.fail(t.key("file"), f"cannot read {path!r}: {exc}", "a .npy file of shape (D, H, W)")
+        key = t.key("density" if "density" in t.data else "file")
+        if dens.ndim != 3 or dens.size == 0:
+            t.fail(key, f"density has shape {dens.shape}", "a non-empty 3-D array (D, H, W), x fastest")
+        if not np.all(np.isfinite(dens)) or np.any(dens < 0):
+            t.fail(key, "density has NaN, Inf or negative values", "finite values >= 0")
+        bmin, bmax = t.vec3("bounds_min"), t.vec3("bounds_max")
+        if any(a >= b for a, b in zip(bmin, bmax)):
+            t.fail(t.key("bounds_max"), f"{list(bmax)} is not above bounds_min {list(bmin)} on every axis",
+                   "bounds_max > bounds_min component-wise")
+        m = GridMedium(**common, density=dens.astype(np.float32), bounds_min=bmin, bounds_max=bmax,
+                       sigma_t_scale=t.vec3("sigma_t_scale", (1.0, 1.0, 1.0), lo=0.0, scalar_ok=True))
+    elif kind == "rbf":
+        if "file" in t.data:
+            path = t.path("file", base_dir)
+            centers = np.load(path)
+        else:
+            centers = t.raw("centers", allowed="[[x, y, z], ...] or file")
+        m = RBFMedium(**common, centers=_array(t, "centers", centers, (3,), "[[x, y, z], ...]"),
+                      radius=t.number("radius", lo=0.0, lo_open=True),
+                      peak=t.vec3("peak", lo=0.0, scalar_ok=True))
+    else:
+        radius = t.number("radius", lo=0.0, lo_open=True)
+        if "generator" in t.data:
+            g = _Table(t.raw("generator"), t.key("generator"), source)
+            g.string("kind", choices=["cloud"])
+            from .procedural import cloud_particles
+
+            positions = cloud_particles(
+                count=g.number("count", 1024, 0, 10_000_000, integer=True),
+                seed=g.number("seed", 1, 0, 2**31 - 1, integer=True),
+                center=g.vec3("center", (0.0, 0.0, 0.0)),
+                extent=g.number("extent", 1.0, 0.0, lo_open=True),
+            )
+            g.finish()
+        elif "file" in t.data:
+            positions = np.load(t.path("file", base_dir))
+        else:
+            positions = t.raw("positions", allowed="generator, file or positions")
+        m = ParticleMedium(**common, positions=_array(t, "positions", positions, (3,), "[[x, y, z], ...]"),
+                           radius=radius, sigma_t=t.vec3("sigma_t", lo=0.0, scalar_ok=True))
+    t.finish()
+    return m
+
+
+def _surface(data, where, source, base_dir) -> Surface:
+    t = _Table(data, where, source)
+    kind = t.string("type", choices=["mesh", "box", "plane", "sphere", "procedural"])
+    name = t.string("name", "")
+    diffuse = t.vec3("diffuse", (0.7, 0.7, 0.7), lo=0.0, hi=1.0, scalar_ok=True)
+    specular = t.number("specular", 0.0, 0.0, 1.0)
+    shininess = t.number("shininess", 20.0, 0.0)
+    static = t.boolean("static", True)
+    if max(diffuse) + specular > 1.0:
+        t.fail(t.key("specular"), f"diffuse + specular = {max(diffuse) + specular:g} creates energy", "diffuse + specular <= 1")
+    colours = None
+    if kind == "mesh":
+        path = t.path("file", base_dir)
+        try:
+            v, f = shapes.read_obj(path)
+        except (OSError, ValueError) as exc:
+            t.fail(t.key("file"), f"cannot read {path!r}: {exc}", "a triangle or polygon .obj file")
+    elif kind == "box":
+        v, f = shapes.box(t.vec3("center", (0.0, 0.0, 0.0)), t.vec3("size", lo=0.0, lo_open=True))
+    elif kind == "plane":
+        normal = t.vec3("normal", (0.0, 1.0, 0.0))
+        if np.linalg.norm(normal) == 0:
+            t.fail(t.key("normal"), "is the zero vector", "a non-zero vector")
+        size = t.raw("size", [100.0, 100.0], "[w, h] with w, h > 0")
+        if not isinstance(size, (list, tuple)) or len(size) != 2 or not all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and x > 0 for x in size
+        ):
+            t.fail(t.key("size"), f"expected [w, h], got {size!r}", "[w, h] with w, h > 0")
+        v, f = shapes.plane(t.vec3("center", (0.0, 0.0, 0.0)), normal, size)
+    elif kind == "sphere":
+        v, f = shapes.sphere(t.vec3("center", (0.0, 0.0, 0.0)), t.number("radius", lo=0.0, lo_open=True))
+    else:
+        if name != "cornell_box":
+            t.fail(t.key("name"), f"unknown procedural surface {name!r}", "cornell_box")
+        v, f, colours = shapes.cornell_box(t.vec3("center", (0.0, 0.0, 0.0)),
+                                           t.vec3("size", (2.0, 2.0, 2.0), lo=0.0, lo_open=True), diffuse)
+    t.finish()
+    if colours is None:
+        colours = np.tile(np.asarray(diffuse, np.float64), (len(f), 1))
+    return Surface(kind, v.astype(np.float32), f.astype(np.int32), colours.astype(np.float32),
+                   specular, shininess, name, static)
+
+
+def scene_from_dict(data: dict, source: str = "<dict>", base_dir: str = ".") -> Scene:
+    """Validate a scene given as a dict (the TOML layout; arrays may be numpy)."""
+    t = _Table(data, "", source)
+    name = t.string("name", os.path.splitext(os.path.basename(source))[0] if source != "<dict>" else "scene")
+    background = t.vec3("background", (0.0, 0.0, 0.0), lo=0.0, scalar_ok=True)
+    camera = _camera(t.raw("camera", allowed="a [camera] table"), source)
+
+    def items(key):
+        v = t.raw(key, [])
+        if not isinstance(v, list):
+            t.fail(key, f"must be an array of tables ([[{key}]]), got {type(v).__name__}", f"[[{key}]] tables")
+        return v
+
+    lights = [_light(d, f"lights[{i}]", source) for i, d in enumerate(items("lights"))]
+    media = [_medium(d, f"media[{i}]", source, base_dir) for i, d in enumerate(items("media"))]
+    surfaces = [_surface(d, f"surfaces[{i}]", source, base_dir) for i, d in enumerate(items("surfaces"))]
+    t.finish()
+    if not media and not surfaces and not any(background):
+        t.fail("media", "the scene has no media, no surfaces and a black background: nothing to see",
+               "at least one medium or surface, or a non-black background")
+    return Scene(name, camera, lights, media, surfaces, background, source)
+
+
+def apply_overrides(data: dict, assignments: list[str], source: str) -> dict:
+    """Apply ``key=value`` overrides (dotted keys, list indices as numbers; value in TOML syntax)."""
+    data = copy.deepcopy(data)
+    for item in assignments:
+        if "=" not in item:
+            raise SceneError(f"{source}: --set {item!r}: expected key=value (allowed: e.g. camera.width=64)")
+        key, value = item.split("=", 1)
+        try:
+            parsed = tomllib.loads(f"v = {value}")["v"]
+        except tomllib.TOMLDecodeError:
+            parsed = value
+        node = data
+        parts = key.strip().split(".")
+        for i, part in enumerate(parts):
+            last = i == len(parts) - 1
+            if isinstance(node, list):
+                if not part.isdigit() or int(part) >= len(node):
+                    raise SceneError(f"{source}: --set {key}: index {part!r} out of range (allowed: 0..{len(node) - 1})")
+                if last:
+                    node[int(part)] = parsed
+                else:
+                    node = node[int(part)]
+            elif isinstance(node, dict):
+                if last:
+                    node[part] = parsed
+                else:
+                    node = node.setdefault(part, {})
+            else:
+                raise SceneError(f"{source}: --set {key}: {part!r} is not inside a table (allowed: a dotted path to a key)")
+    return data
+
+
+def load_scene(scene, overrides: list[str] | None = None) -> Scene:
+    """A Scene from a .toml path, a built-in scene name, a dict, or a Scene (returned as is)."""
+    if isinstance(scene, Scene):
+        return scene
+    if isinstance(scene, dict):
+        return scene_from_dict(apply_overrides(scene, overrides or [], "<dict>"), "<dict>", ".")
+    path = os.fspath(scene)
+    from .procedural import BUILTIN
+
+    if path in BUILTIN and not os.path.exists(path):
+        data = BUILTIN[path]()
+        return scene_from_dict(apply_overrides(data, overrides or [], f"<builtin {path}>"), f"<builtin {path}>", ".")
+    if not os.path.isfile(path):
+        raise SceneError(f"{path}: file not found (allowed: a .toml scene file or a built-in name: {', '.join(sorted(BUILTIN))})")
+    try:
+        with open(path, "rb") as fh:
+            data = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{path}: not valid TOML: {exc} (allowed: TOML as in DESIGN.md)") from None
+    return scene_from_dict(apply_overrides(data, overrides or [], path), path, os.path.dirname(os.path.abspath(path)))

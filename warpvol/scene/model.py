@@ -1,0 +1,126 @@
+"""What is rendered, as plain dataclasses (no Warp here).
+
+Vectors are 3-tuples of floats; RGB quantities are 3-tuples even when the file gave a
+scalar. Arrays (grid densities, RBF centres, particle positions, mesh triangles) are
+numpy arrays. ``warpvol.scene.load`` builds these from TOML or a dict and validates them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+Vec3 = tuple[float, float, float]
+
+
+@dataclass
+class Camera:
+    origin: Vec3
+    target: Vec3
+    up: Vec3 = (0.0, 1.0, 0.0)
+    fov_y: float = 40.0  # vertical field of view, degrees
+    width: int = 128
+    height: int = 96
+
+
+@dataclass
+class Light:
+    type: str  # point | spot | directional
+    strength: Vec3  # intensity (W/sr) for point and spot; irradiance for directional
+    position: Vec3 = (0.0, 0.0, 0.0)
+    direction: Vec3 = (0.0, -1.0, 0.0)  # travel direction (directional), cone axis (spot)
+    inner_angle: float = 20.0  # spot: full strength inside this half-angle, degrees
+    outer_angle: float = 30.0  # spot: zero outside this half-angle, degrees
+
+
+@dataclass
+class Phase:
+    type: str = "isotropic"  # isotropic | hg | cornette_shanks | rayleigh | tabulated
+    g: float = 0.0
+    values: np.ndarray | None = None  # tabulated: p on a uniform cos grid over [-1, 1]
+
+
+@dataclass
+class Medium:
+    """Common part of every medium: single-scattering albedo and phase function."""
+
+    albedo: Vec3
+    phase: Phase
+    static: bool = True
+
+    @property
+    def type(self) -> str:
+        raise NotImplementedError
+
+
+@dataclass
+class HomogeneousMedium(Medium):
+    shape: str = "box"  # box | sphere
+    center: Vec3 = (0.0, 0.0, 0.0)
+    size: Vec3 = (1.0, 1.0, 1.0)  # box edge lengths
+    radius: float = 1.0  # sphere
+    sigma_t: Vec3 = (1.0, 1.0, 1.0)
+
+    @property
+    def type(self) -> str:
+        return "homogeneous"
+
+
+@dataclass
+class GridMedium(Medium):
+    density: np.ndarray = field(default_factory=lambda: np.zeros((1, 1, 1), np.float32))  # [z, y, x]
+    bounds_min: Vec3 = (-1.0, -1.0, -1.0)
+    bounds_max: Vec3 = (1.0, 1.0, 1.0)
+    sigma_t_scale: Vec3 = (1.0, 1.0, 1.0)
+
+    @property
+    def type(self) -> str:
+        return "grid"
+
+
+@dataclass
+class RBFMedium(Medium):
+    centers: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.float32))
+    radius: float = 0.5  # sigma of each Gaussian
+    peak: Vec3 = (1.0, 1.0, 1.0)  # sigma_t at a centre
+
+    @property
+    def type(self) -> str:
+        return "rbf"
+
+
+@dataclass
+class ParticleMedium(Medium):
+    positions: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.float32))
+    radius: float = 0.1  # every particle a sphere of this radius
+    sigma_t: Vec3 = (1.0, 1.0, 1.0)  # uniform inside each sphere; overlaps add
+
+    @property
+    def type(self) -> str:
+        return "particles"
+
+
+@dataclass
+class Surface:
+    """An opaque two-sided surface, already triangulated (vertices (V, 3), faces (F, 3))."""
+
+    type: str  # mesh | box | plane | sphere | procedural
+    vertices: np.ndarray
+    faces: np.ndarray
+    diffuse: np.ndarray  # (F, 3) per-face Lambertian reflectance
+    specular: float = 0.0
+    shininess: float = 20.0
+    name: str = ""
+    static: bool = True
+
+
+@dataclass
+class Scene:
+    name: str
+    camera: Camera
+    lights: list[Light] = field(default_factory=list)
+    media: list[Medium] = field(default_factory=list)
+    surfaces: list[Surface] = field(default_factory=list)
+    background: Vec3 = (0.0, 0.0, 0.0)
+    source: str = "<dict>"  # file the scene came from, for messages

@@ -1,0 +1,113 @@
+"""Built-in scenes (as scene dicts, validated like files) and procedural media."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def cloud_particles(count: int, seed: int = 1, center=(0.0, 0.0, 0.0), extent: float = 1.0) -> np.ndarray:
+    """``count`` positions inside a ball of radius ``extent``, with density proportional to a
+    collision-density field rho(r) = (1 - |r|^2)^2 modulated by a few seeded lumps.
+    Rejection sampling, so the positions follow rho exactly."""
+    rng = np.random.default_rng(seed)
+    lumps = rng.uniform(-0.6, 0.6, size=(5, 3))
+    out = np.zeros((0, 3))
+    while len(out) < count:
+        p = rng.uniform(-1.0, 1.0, size=(max(4 * count, 64), 3))
+        r2 = np.sum(p * p, axis=1)
+        rho = np.clip(1.0 - r2, 0.0, None) ** 2 * (0.4 + np.exp(-np.sum((p[:, None] - lumps) ** 2, -1) / 0.08).sum(1) * 0.6)
+        keep = rng.uniform(0.0, 2.0, size=len(p)) < rho
+        out = np.concatenate([out, p[keep]])
+    return (np.asarray(center) + extent * out[:count]).astype(np.float32)
+
+
+def smoke_density(n: int = 32, seed: int = 3) -> np.ndarray:
+    """A (n, n, n) plume: sum of seeded Gaussian puffs rising along y, in [0, 1]."""
+    rng = np.random.default_rng(seed)
+    c = (np.arange(n) + 0.5) / n * 2.0 - 1.0
+    z, y, x = np.meshgrid(c, c, c, indexing="ij")
+    d = np.zeros((n, n, n))
+    for _ in range(24):
+        py = rng.uniform(-0.8, 0.7)
+        px, pz = 0.25 * (py + 1.0) * rng.normal(size=2) * 0.6
+        s = 0.12 + 0.12 * (py + 1.0)
+        d += np.exp(-((x - px) ** 2 + (y - py) ** 2 + (z - pz) ** 2) / (2 * s * s))
+    return (d / d.max()).astype(np.float32)
+
+
+def _camera(width=160, height=120, origin=(0.0, 0.0, 3.9), target=(0.0, 0.0, 0.0), fov_y=40.0):
+    return {"origin": list(origin), "target": list(target), "up": [0.0, 1.0, 0.0], "fov_y": fov_y,
+            "width": width, "height": height}
+
+
+def fog_box():
+    """Cornell box filled with forward-scattering fog, a point light inside the fog."""
+    return {
+        "name": "fog-box",
+        "camera": _camera(),
+        "lights": [{"type": "point", "position": [0.3, 0.7, 0.2], "intensity": [6.0, 5.6, 5.0]}],
+        "media": [{"type": "homogeneous", "shape": "box", "center": [0, 0, 0], "size": [1.98, 1.98, 1.98],
+                   "sigma_t": 0.6, "albedo": 0.8, "phase": {"type": "hg", "g": 0.3}}],
+        "surfaces": [{"type": "procedural", "name": "cornell_box", "diffuse": 0.7},
+                     {"type": "box", "center": [-0.35, -0.6, -0.3], "size": [0.5, 0.8, 0.5], "diffuse": 0.6}],
+    }
+
+
+def point_in_fog():
+    """A point light in fog that fills everything (the Sun et al. 2005 airlight set-up)."""
+    return {
+        "name": "point-in-fog",
+        "camera": _camera(origin=(0.0, 0.0, 0.0), target=(0.0, 0.0, -1.0), fov_y=60.0),
+        "lights": [{"type": "point", "position": [0.4, 0.2, -2.0], "intensity": 10.0}],
+        "media": [{"type": "homogeneous", "shape": "sphere", "center": [0, 0, 0], "radius": 50.0,
+                   "sigma_t": 0.3, "albedo": 1.0, "phase": {"type": "isotropic"}}],
+    }
+
+
+def smoke_grid():
+    """A smoke plume from a density grid over a floor, lit by the sun and a blue sky."""
+    return {
+        "name": "smoke-grid",
+        "background": [0.05, 0.08, 0.12],
+        "camera": _camera(origin=(0.0, 0.2, 4.2), target=(0.0, 0.0, 0.0)),
+        "lights": [{"type": "directional", "direction": [-0.5, -1.0, -0.3], "irradiance": [3.0, 2.9, 2.6]}],
+        "media": [{"type": "grid", "density": smoke_density(), "bounds_min": [-1, -1, -1], "bounds_max": [1, 1, 1],
+                   "sigma_t_scale": 6.0, "albedo": 0.9, "phase": {"type": "hg", "g": 0.5}}],
+        "surfaces": [{"type": "plane", "center": [0, -1.0, 0], "normal": [0, 1, 0], "size": [8, 8], "diffuse": 0.5}],
+    }
+
+
+def rbf_cornell():
+    """Cornell box with 16 Gaussian puffs and two point lights (papers/003, figure 4)."""
+    g = np.linspace(-0.45, 0.45, 4)
+    centers = [[x, -0.4 + 0.25 * np.sin(3 * x + z), z] for x in g for z in g]
+    return {
+        "name": "rbf-cornell",
+        "camera": _camera(),
+        "lights": [{"type": "point", "position": [-0.5, 0.8, 0.3], "intensity": [4.0, 3.2, 2.4]},
+                   {"type": "point", "position": [0.6, 0.6, -0.2], "intensity": [1.6, 2.4, 4.0]}],
+        "media": [{"type": "rbf", "centers": centers, "radius": 0.18, "peak": 3.0, "albedo": 0.9,
+                   "phase": {"type": "isotropic"}}],
+        "surfaces": [{"type": "procedural", "name": "cornell_box", "diffuse": 0.7}],
+    }
+
+
+def particle_cloud():
+    """A cloud of 1024 overlapping spheres under the sun and a sky (papers/000 set-up)."""
+    return {
+        "name": "particle-cloud",
+        "background": [0.25, 0.35, 0.55],
+        "camera": _camera(origin=(0.0, 0.0, 4.5)),
+        "lights": [{"type": "directional", "direction": [-0.4, -1.0, -0.5], "irradiance": 4.0}],
+        "media": [{"type": "particles", "generator": {"kind": "cloud", "count": 1024, "seed": 1, "extent": 1.2},
+                   "radius": 0.12, "sigma_t": 4.0, "albedo": 0.95, "phase": {"type": "hg", "g": 0.6}}],
+    }
+
+
+BUILTIN = {
+    "fog-box": fog_box,
+    "point-in-fog": point_in_fog,
+    "smoke-grid": smoke_grid,
+    "rbf-cornell": rbf_cornell,
+    "particle-cloud": particle_cloud,
+}

@@ -1,0 +1,75 @@
+"""Direct lighting shared by the techniques: what a light delivers to a point in a medium
+or on a surface, through the media and past the surfaces in between.
+
+Transmittance to a light is either estimated without bias (``march_steps`` = 0: exact for
+homogeneous media, ratio tracking for heterogeneous ones) or marched deterministically
+with ``march_steps`` midpoint steps over the heterogeneous part (homogeneous media exact).
+"""
+
+import math
+
+import warp as wp
+
+from .geometry.mesh import Surfaces, occluded
+from .media.volume import Media, homogeneous_optical_depth, ray_box, sigma_t_at, transmittance_estimate
+from .physics.brdf import Material, brdf_eval
+from .physics.constants import RAY_EPS
+from .physics.lights import KINDS, Light, light_incident
+from .physics.transmittance import transmittance_rgb
+
+
+@wp.func
+def marched_optical_depth(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: float, steps: int) -> wp.vec3:
+    """Optical depth over [t0, t1]: homogeneous media exact, heterogeneous by the midpoint rule."""
+    tau = homogeneous_optical_depth(m, o, d, t0, t1)
+    if m.het_majorant[0] <= 0.0 and m.het_majorant[1] <= 0.0 and m.het_majorant[2] <= 0.0:
+        return tau
+    a, b = ray_box(o, d, m.het_min, m.het_max)
+    a = wp.max(a, t0)
+    b = wp.min(b, t1)
+    if a < b:
+        dt = (b - a) / float(steps)
+        for k in range(steps):
+            tau += sigma_t_at(m, o + (a + (float(k) + 0.5) * dt) * d, True) * dt
+    return tau
+
+
+@wp.func
+def light_transmittance(m: Media, s: Surfaces, x: wp.vec3, wi: wp.vec3, dist: float, c: int,
+                        rng: wp.uint32, march_steps: int) -> wp.vec3:
+    """Fraction of the light that reaches x from distance ``dist`` along wi (0 if a surface blocks it)."""
+    if occluded(s, x, wi, dist):
+        return wp.vec3(0.0)
+    if march_steps > 0:
+        return transmittance_rgb(marched_optical_depth(m, x, wi, 0.0, dist, march_steps))
+    return transmittance_estimate(m, x, wi, 0.0, dist, c, rng)
+
+
+@wp.func
+def surface_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), p: wp.vec3, n: wp.vec3, wo: wp.vec3,
+                   mat: Material, c: int, rng: wp.uint32, march_steps: int) -> wp.vec3:
+    """Radiance reflected toward wo by direct light; ``n`` faces wo."""
+    L = wp.vec3(0.0)
+    start = p + RAY_EPS * n
+    for l in range(lights.shape[0]):
+        wi, dist, e = light_incident(lights[l], p)
+        cos_l = wp.dot(n, wi)
+        if cos_l > 0.0 and (e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0):
+            tr = light_transmittance(m, s, start, wi, dist, c, wp.rand_init(wp.randi(rng)), march_steps)
+            L += cos_l * wp.cw_mul(wp.cw_mul(brdf_eval(mat, n, wo, wi), e), tr)
+    return L
+
+
+def light_array(scene, device) -> wp.array:
+    """The scene's lights as an array of ``Light`` structs."""
+    out = []
+    for light in scene.lights:
+        s = Light()
+        s.kind = KINDS[light.type]
+        s.position = wp.vec3(*light.position)
+        s.direction = wp.vec3(*light.direction)
+        s.strength = wp.vec3(*light.strength)
+        s.cos_inner = math.cos(math.radians(light.inner_angle))
+        s.cos_outer = math.cos(math.radians(light.outer_angle))
+        out.append(s)
+    return wp.array(out, dtype=Light, device=device) if out else wp.empty(0, dtype=Light, device=device)
