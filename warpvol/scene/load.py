@@ -80,7 +80,7 @@ class _Table:
         return int(v) if integer else float(v)
 
     def vec3(self, name, default=_REQUIRED, lo=-math.inf, hi=math.inf, scalar_ok=False, lo_open=False):
-        allowed = ("a number or " if scalar_ok else "") + "[x, y, z] with each in " + _range_text(lo, hi, lo_open, False, False)
+        allowed = ("a number or " if scalar_ok else "") + "[x, y, z], each a " + _range_text(lo, hi, lo_open, False, False)
         v = self.raw(name, default, allowed)
         if v is default and default is not _REQUIRED:
             return tuple(float(x) for x in v) if isinstance(v, (list, tuple)) else v
