@@ -85,6 +85,10 @@ class _Table:
         if v is default and default is not _REQUIRED:
             return tuple(float(x) for x in v) if isinstance(v, (list, tuple)) else v
         if scalar_ok and isinstance(v, (int, float)) and not isinstance(v, bool):
+            if not math.isfinite(v):
+                self.fail(self.key(name), f"{v} is not finite", allowed)
+            if v < lo or v > hi or (lo_open and v == lo):
+                self.fail(self.key(name), f"{v} is out of range", allowed)
             v = [v, v, v]
         if not isinstance(v, (list, tuple)) or len(v) != 3 or any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in v):
             self.fail(self.key(name), f"expected 3 numbers, got {v!r}", allowed)
@@ -127,9 +131,11 @@ def _range_text(lo, hi, lo_open, hi_open, integer):
     kind = "integer" if integer else "number"
     if lo == -math.inf and hi == math.inf:
         return f"any finite {kind}"
+    if hi == math.inf:
+        return f"{kind} {'>' if lo_open else '>='} {lo:g}"
     left = "(" if lo_open else "["
     right = ")" if hi_open or hi == math.inf else "]"
-    return f"{kind} in {left}{lo:g}, {hi:g}{right}".replace("inf", "inf")
+    return f"{kind} in {left}{lo:g}, {hi:g}{right}"
 
 
 def _array(t: _Table, name: str, value, shape_tail: tuple, what: str) -> np.ndarray:
