@@ -1,0 +1,56 @@
+"""The command line and image files, as a user runs them."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import warpvol as wv
+from warpvol import device as dev
+
+
+def run(*args):
+    return subprocess.run([sys.executable, "-m", "warpvol", *args], capture_output=True, text=True)
+
+
+def test_render_writes_exr_png_npy(tmp_path):
+    outs = [tmp_path / "a.exr", tmp_path / "a.png", tmp_path / "a.npy"]
+    r = run("render", "fog-box", "--technique", "raymarch", "--set", "camera.width=40", "--set", "camera.height=30",
+            "--set", "steps=32", "--timings", *sum((["--out", str(o)] for o in outs), []))
+    assert r.returncode == 0, r.stderr
+    assert "march" in r.stdout
+    exr, npy = wv.load_image(str(outs[0])), np.load(outs[2])
+    assert exr.shape == (30, 40, 3) and exr.dtype == np.float32
+    np.testing.assert_array_equal(exr, npy)  # float32 EXR is lossless
+    assert outs[1].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert npy.max() > 0
+
+
+def test_exr_roundtrip_and_orientation(tmp_path):
+    img = np.zeros((4, 6, 3), np.float32)
+    img[0, :, 0] = 1.0  # top row red
+    img[:, -1, 2] = 2.5  # right column blue, HDR
+    wv.save_image(str(tmp_path / "t.exr"), img)
+    np.testing.assert_array_equal(wv.load_image(str(tmp_path / "t.exr")), img)
+
+
+def test_bad_extension_and_bad_device(tmp_path):
+    r = run("render", "fog-box", "--technique", "raymarch", "--out", str(tmp_path / "x.jpg"))
+    assert r.returncode == 2 and "allowed: .exr, .png, .npy" in r.stderr and "Traceback" not in r.stderr
+    r = run("render", "fog-box", "--device", "cuda:7", "--out", str(tmp_path / "x.png"))
+    assert r.returncode == 2 and "device 'cuda:7' is not available" in r.stderr
+
+
+def test_scenes_lists_builtins():
+    r = run("scenes")
+    assert r.returncode == 0 and "fog-box" in r.stdout and "particle-cloud" in r.stdout
+
+
+def test_device_pick(monkeypatch):
+    monkeypatch.setenv("WARPVOL_DEVICE", "cpu")
+    assert dev.pick() == "cpu"
+    monkeypatch.delenv("WARPVOL_DEVICE")
+    assert dev.pick() in dev.available()
+    with pytest.raises(dev.DeviceError, match="allowed: cpu"):
+        dev.pick("tpu")
