@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 import warpvol as wv
-from warpvol.geometry.camera import pinhole  # noqa: F401  (kept importable for users of the camera)
 from warpvol.physics.airlight import airlight_exact
 
 from .conftest import assert_mean_within_noise, two_seed_render
