@@ -1,10 +1,14 @@
-"""The public entry points: render a scene with a technique, get a Frame."""
+"""The public entry points: render a scene with a technique, get a Frame; or keep a
+``Renderer`` for animation and interaction, which re-runs only what a change invalidates."""
 
 from __future__ import annotations
 
+import dataclasses
+
 from . import device as dev
-from .pipeline import Frame, SettingsError, resolve_settings
+from .pipeline import Frame, Pipeline, SettingsError, resolve_settings
 from .scene import load_scene
+from .scene.load import parse_part
 
 
 def techniques() -> list[str]:
@@ -13,19 +17,87 @@ def techniques() -> list[str]:
     return sorted(TECHNIQUES)
 
 
+def technique_class(name: str):
+    from .techniques import TECHNIQUES
+
+    if name not in TECHNIQUES:
+        raise SettingsError(f"unknown technique {name!r} (allowed: {', '.join(sorted(TECHNIQUES))})")
+    return TECHNIQUES[name]
+
+
+class Renderer:
+    """A technique bound to a scene, kept between frames.
+
+    >>> r = Renderer("point-in-fog", technique="raymarch", shadow_grid=32)
+    >>> r.render().stages["light_volume"].status
+    'ran'
+    >>> r.update(camera=dict(origin=[0, 0, 5], target=[0, 0, 0]))
+    >>> r.render().stages["light_volume"].status      # the camera does not move the light
+    'cached'
+
+    ``scene`` is a Scene, a .toml path, a built-in name or a dict; settings are the
+    technique's (``warpvol.techniques.TECHNIQUES[name].SETTINGS``). Bad names and values
+    raise before anything runs.
+    """
+
+    def __init__(self, scene, technique: str = "reference", device: str | None = None, progress: bool = False,
+                 **settings):
+        cls = technique_class(technique)
+        resolved = resolve_settings(technique, cls.SETTINGS, settings)
+        self._technique = cls(load_scene(scene), dev.pick(device), resolved, progress)
+        self._pipeline = Pipeline(self._technique)
+
+    @property
+    def scene(self):
+        return self._technique.scene
+
+    @property
+    def settings(self) -> dict:
+        return dict(self._technique.settings)
+
+    @property
+    def device(self) -> str:
+        return self._technique.device
+
+    def update(self, *, lights=None, medium=None, camera=None, surfaces=None, background=None,
+               settings: dict | None = None) -> None:
+        """Replace scene parts or settings and mark them changed.
+
+        ``lights``, ``medium`` and ``surfaces`` take one item or a list (model objects or
+        tables as in a scene file), ``camera`` a Camera or table, ``background`` an RGB
+        triple, ``settings`` a dict of technique settings. Passing the scene's own part
+        again (after editing it in place) marks it changed.
+        """
+        t = self._technique
+        changes, parts = {}, []
+        for part, value, field in (("lights", lights, "lights"), ("medium", medium, "media"),
+                                   ("surfaces", surfaces, "surfaces"), ("camera", camera, "camera")):
+            if value is not None:
+                changes[field] = parse_part(part, value)
+                parts.append(part)
+        if background is not None:
+            changes["background"] = tuple(float(v) for v in background)
+            parts.append("background")
+        if settings:
+            resolved = resolve_settings(t.NAME, t.SETTINGS, settings, base=t.settings)
+            t.check_settings(resolved)
+            t.settings = resolved
+        if changes:
+            t.scene = dataclasses.replace(t.scene, **changes)
+        self._pipeline.changed(*parts)
+
+    def render(self) -> Frame:
+        """Run the stages the scene calls for and the changes invalidated; return the Frame."""
+        t = self._technique
+        stages = self._pipeline.run()
+        cam = t.scene.camera
+        return Frame(t.output(), (cam.height, cam.width), t.NAME, t.device, dict(t.settings), stages)
+
+
 def render(scene, technique: str = "reference", device: str | None = None, progress: bool = False, **settings) -> Frame:
     """Render ``scene`` (a Scene, a .toml path, a built-in name or a dict) with ``technique``.
 
     Settings are the technique's (``warpvol.techniques.TECHNIQUES[name].SETTINGS``); an
     unknown name or an out-of-range value raises before anything runs.
     """
-    from .techniques import TECHNIQUES
-
-    if technique not in TECHNIQUES:
-        raise SettingsError(f"unknown technique {technique!r} (allowed: {', '.join(sorted(TECHNIQUES))})")
-    module = TECHNIQUES[technique]
-    resolved = resolve_settings(technique, module.SETTINGS, settings)
-    scene = load_scene(scene)
-    device = dev.pick(device)
-    image, timings = module.render(scene, device, resolved, progress)
-    return Frame(image=image, technique=technique, device=device, settings=resolved, timings=timings)
+    return Renderer(scene, technique, device, progress, **settings).render()

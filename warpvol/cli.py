@@ -34,14 +34,13 @@ def _parse_set(values: list[str], technique_settings: dict) -> tuple[dict, list[
 
 def cmd_render(args) -> int:
     import warpvol as wv
+    from warpvol.api import technique_class
     from warpvol.pipeline import SettingsError
-    from warpvol.techniques import TECHNIQUES
 
-    if args.technique not in TECHNIQUES:
-        raise SettingsError(f"unknown technique {args.technique!r} (allowed: {', '.join(sorted(TECHNIQUES))})")
-    settings, overrides = _parse_set(args.set or [], TECHNIQUES[args.technique].SETTINGS)
+    spec = technique_class(args.technique).SETTINGS
+    settings, overrides = _parse_set(args.set or [], spec)
     if args.spp is not None:
-        if "spp" not in TECHNIQUES[args.technique].SETTINGS:
+        if "spp" not in spec:
             raise SettingsError(f"{args.technique}: --spp does not apply (allowed: with --technique reference)")
         settings["spp"] = args.spp
     scene = wv.load_scene(args.scene, overrides)
@@ -53,8 +52,8 @@ def cmd_render(args) -> int:
     print(f"{scene.name}: {args.technique} on {frame.device}, {scene.camera.width}x{scene.camera.height}, "
           f"{wall:.2f} s -> {', '.join(args.out)}")
     if args.timings:
-        for stage, seconds in frame.timings.items():
-            print(f"  {stage:<10} {seconds * 1000:10.2f} ms")
+        for stage, run in frame.stages.items():
+            print(f"  {stage:<14} {run.status:<8} {run.ms:10.2f} ms")
     return 0
 
 

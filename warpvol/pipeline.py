@@ -1,13 +1,33 @@
-"""Frames, per-stage timing, and settings that name the bad key and its range."""
+"""Stages, their inputs, and what a change invalidates; Frames and validated settings.
+
+A technique is a small graph of named stages (upload the medium, bake a shadow volume,
+march, ...). Each ``Stage`` declares what it reads: scene parts (``PARTS``), settings by
+name, and the stages whose outputs it uses. ``Pipeline`` runs a frame:
+
+* a stage the scene does not call for (``needed=False``: no surfaces, no shadow pass;
+  single scattering, no iteration) is **skipped**;
+* a stage whose inputs are unchanged since it last ran is **cached**: its outputs, kept
+  by the technique, are used again;
+* every other stage **ran**, timed with the device synchronised after it.
+
+A change is a version bump of a scene part: ``Pipeline.update`` bumps what it replaces,
+and a part marked ``static = false`` in the scene is treated as changed every frame
+(animated). A stage's cache key is the versions of the parts it reads, the values of the
+settings it reads and the run counts of the stages it follows, so a re-run propagates
+downstream and nothing else. This is the rule of Zhou et al. 2007 (papers/003), Table 1.
+"""
 
 from __future__ import annotations
 
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 import warp as wp
+
+PARTS = ("medium", "lights", "camera", "surfaces", "background")
 
 
 class SettingsError(ValueError):
@@ -22,8 +42,9 @@ class Setting:
     doc: str
 
 
-def resolve_settings(technique: str, spec: dict[str, Setting], given: dict) -> dict:
-    out = {k: s.default for k, s in spec.items()}
+def resolve_settings(technique: str, spec: dict[str, Setting], given: dict, base: dict | None = None) -> dict:
+    """Defaults (or ``base``) updated with ``given``; an unknown key or a bad value raises."""
+    out = dict(base) if base is not None else {k: s.default for k, s in spec.items()}
     for key, value in given.items():
         if key not in spec:
             raise SettingsError(f"{technique}: unknown setting {key!r} (allowed: {', '.join(sorted(spec))})")
@@ -38,20 +59,169 @@ def resolve_settings(technique: str, spec: dict[str, Setting], given: dict) -> d
     return out
 
 
-@dataclass
-class Frame:
-    """A rendered image (H x W x 3 float32, linear RGB, row 0 at the top) and what it cost."""
+@dataclass(frozen=True)
+class Stage:
+    """One pass of a technique.
 
-    image: np.ndarray
-    technique: str
-    device: str
-    settings: dict
-    timings: dict[str, float] = field(default_factory=dict)  # stage -> seconds, device-synchronised
+    ``run`` computes the stage's outputs and keeps them on the technique. ``reads`` names
+    scene parts (``PARTS``), ``settings`` the settings it reads, ``after`` the earlier
+    stages whose outputs it uses. ``needed=False`` when the scene does not call for it.
+    """
+
+    name: str
+    run: Callable[[], None]
+    reads: tuple[str, ...] = ()
+    settings: tuple[str, ...] = ()
+    after: tuple[str, ...] = ()
+    needed: bool = True
+
+
+@dataclass(frozen=True)
+class StageRun:
+    status: str  # "ran" | "cached" | "skipped"
+    ms: float  # device-synchronised wall time; 0 unless it ran
+
+
+class Technique:
+    """Base of every technique: the scene, device and settings, and the stages of a frame.
+
+    Subclasses set ``NAME`` and ``SETTINGS``, keep their buffers as attributes, and define
+    ``stages()`` (the graph, in order, re-read every frame so ``needed`` follows the
+    scene) and ``output()`` (the last frame's image: H*W vec3 on the device, or numpy).
+    """
+
+    NAME = ""
+    SETTINGS: dict[str, Setting] = {}
+
+    def __init__(self, scene, device: str, settings: dict, progress: bool = False):
+        self.scene = scene
+        self.device = device
+        self.settings = settings
+        self.progress = progress
+        self.check_settings(settings)
+
+    def check_settings(self, settings: dict) -> None:
+        """Raise ``SettingsError`` for combinations the ranges alone do not exclude."""
+
+    def stages(self) -> list[Stage]:
+        raise NotImplementedError
+
+    def output(self):
+        raise NotImplementedError
+
+
+class Frame:
+    """A rendered image (H x W x 3 float32, linear RGB, row 0 at the top) and what it cost.
+
+    ``stages`` maps each stage to its ``StageRun`` (status and ms); ``timings`` is the
+    {stage: seconds} view of the same data. The image is copied off the device the first
+    time ``image`` is read, so timing a frame does not time the read-back.
+    """
+
+    def __init__(self, output, shape: tuple[int, int], technique: str, device: str, settings: dict,
+                 stages: dict[str, StageRun]):
+        self._output = output
+        self._image = None
+        self.shape = shape
+        self.technique = technique
+        self.device = device
+        self.settings = settings
+        self.stages = stages
+
+    @property
+    def image(self) -> np.ndarray:
+        if self._image is None:
+            data = self._output.numpy() if isinstance(self._output, wp.array) else np.asarray(self._output)
+            self._image = data.astype(np.float32, copy=False).reshape(*self.shape, 3)
+            self._output = None
+        return self._image
+
+    @property
+    def timings(self) -> dict[str, float]:
+        return {name: run.ms / 1000.0 for name, run in self.stages.items()}
+
+    def __repr__(self) -> str:
+        runs = ", ".join(f"{n}={r.status}" for n, r in self.stages.items())
+        return f"Frame({self.technique} on {self.device}, {self.shape[1]}x{self.shape[0]}; {runs})"
+
+
+def dynamic_parts(scene) -> set[str]:
+    """Scene parts marked ``static = false``: treated as changed every frame."""
+    out = set()
+    if any(not m.static for m in scene.media):
+        out.add("medium")
+    if any(not light.static for light in scene.lights):
+        out.add("lights")
+    if any(not s.static for s in scene.surfaces):
+        out.add("surfaces")
+    if not scene.camera.static:
+        out.add("camera")
+    return out
+
+
+class Pipeline:
+    """Runs a technique's stages frame after frame, re-running only what a change invalidates."""
+
+    def __init__(self, technique: Technique):
+        self.technique = technique
+        self.versions = dict.fromkeys(PARTS, 0)
+        self._keys: dict[str, tuple] = {}  # stage -> cache key it last ran with
+        self._runs: dict[str, int] = {}  # stage -> times it ran (its output's version)
+        self._dynamic = dynamic_parts(technique.scene)
+        self._frames = 0
+        self._checked: set[str] = set()
+
+    def changed(self, *parts: str) -> None:
+        """Mark scene parts as changed (the technique's scene already holds the new values)."""
+        for part in parts:
+            if part not in self.versions:
+                raise ValueError(f"unknown scene part {part!r} (allowed: {', '.join(PARTS)})")
+            self.versions[part] += 1
+        self._dynamic = dynamic_parts(self.technique.scene)
+
+    def _check(self, stage: Stage, seen: set[str]) -> None:
+        bad = [p for p in stage.reads if p not in self.versions]
+        bad += [s for s in stage.settings if s not in self.technique.settings]
+        bad += [a for a in stage.after if a not in seen]
+        if bad:
+            raise ValueError(f"{self.technique.NAME}: stage {stage.name!r} declares unknown inputs {bad} "
+                             f"(allowed: parts {PARTS}, settings, earlier stages)")
+        self._checked.add(stage.name)
+
+    def run(self) -> dict[str, StageRun]:
+        if self._frames:
+            for part in self._dynamic:
+                self.versions[part] += 1
+        self._frames += 1
+        settings, versions, runs, keys = self.technique.settings, self.versions, self._runs, self._keys
+        device = self.technique.device
+        out: dict[str, StageRun] = {}
+        seen: set[str] = set()
+        for stage in self.technique.stages():
+            if stage.name not in self._checked:
+                self._check(stage, seen)
+            seen.add(stage.name)
+            if not stage.needed:
+                keys.pop(stage.name, None)
+                out[stage.name] = StageRun("skipped", 0.0)
+                continue
+            key = (tuple(versions[p] for p in stage.reads), tuple(settings[s] for s in stage.settings),
+                   tuple(runs.get(a, 0) for a in stage.after))
+            if keys.get(stage.name) == key:
+                out[stage.name] = StageRun("cached", 0.0)
+                continue
+            t0 = time.perf_counter()
+            stage.run()
+            wp.synchronize_device(device)
+            out[stage.name] = StageRun("ran", (time.perf_counter() - t0) * 1000.0)
+            keys[stage.name] = key
+            runs[stage.name] = runs.get(stage.name, 0) + 1
+        return out
 
 
 @contextmanager
 def timed(timings: dict, stage: str, device: str):
-    """Add the device-synchronised wall time of the block to ``timings[stage]``."""
+    """Add the device-synchronised wall time of the block to ``timings[stage]`` (seconds)."""
     t0 = time.perf_counter()
     yield
     wp.synchronize_device(device)

@@ -41,3 +41,27 @@ def grid_trilinear(data: wp.array(dtype=float), offset: int, dims: wp.vec3i, bmi
 def grid_majorant(density: np.ndarray) -> float:
     """Trilinear interpolation never exceeds the largest sample."""
     return float(np.max(density))
+
+
+@wp.func
+def lattice_trilinear_vec3(values: wp.array(dtype=wp.vec3), base: int, n: int, lo: wp.vec3, hi: wp.vec3,
+                           x: wp.vec3) -> wp.vec3:
+    """Trilinear lookup in an n^3 lattice of vec3 with nodes on the corners of [lo, hi]
+    (node (i, j, k) at lo + (i, j, k) (hi - lo) / (n - 1), x fastest, from ``base``);
+    points outside clamp to the boundary."""
+    g = wp.cw_div(x - lo, hi - lo) * float(n - 1)
+    fx = wp.clamp(g[0], 0.0, float(n - 1))
+    fy = wp.clamp(g[1], 0.0, float(n - 1))
+    fz = wp.clamp(g[2], 0.0, float(n - 1))
+    x0 = wp.min(int(fx), n - 2)
+    y0 = wp.min(int(fy), n - 2)
+    z0 = wp.min(int(fz), n - 2)
+    tx = fx - float(x0)
+    ty = fy - float(y0)
+    tz = fz - float(z0)
+    i = base + (z0 * n + y0) * n + x0
+    c00 = values[i] * (1.0 - tx) + values[i + 1] * tx
+    c10 = values[i + n] * (1.0 - tx) + values[i + n + 1] * tx
+    c01 = values[i + n * n] * (1.0 - tx) + values[i + n * n + 1] * tx
+    c11 = values[i + n * n + n] * (1.0 - tx) + values[i + n * n + n + 1] * tx
+    return (c00 * (1.0 - ty) + c10 * ty) * (1.0 - tz) + (c01 * (1.0 - ty) + c11 * ty) * tz

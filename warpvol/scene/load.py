@@ -161,6 +161,7 @@ def _camera(data, source) -> Camera:
         fov_y=t.number("fov_y", 40.0, 0.0, 180.0, lo_open=True, hi_open=True),
         width=t.number("width", 128, 1, 16384, integer=True),
         height=t.number("height", 96, 1, 16384, integer=True),
+        static=t.boolean("static", True),
     )
     t.finish()
     fwd = np.subtract(cam.target, cam.origin)
@@ -174,6 +175,7 @@ def _camera(data, source) -> Camera:
 def _light(data, where, source) -> Light:
     t = _Table(data, where, source)
     kind = t.string("type", choices=["point", "spot", "directional"])
+    static = t.boolean("static", True)
     if kind == "directional":
         direction = t.vec3("direction")
         if np.linalg.norm(direction) == 0:
@@ -189,6 +191,7 @@ def _light(data, where, source) -> Light:
             light.direction = tuple((np.asarray(direction) / np.linalg.norm(direction)).tolist())
             light.outer_angle = t.number("outer_angle", 30.0, 0.0, 180.0, lo_open=True)
             light.inner_angle = t.number("inner_angle", min(20.0, light.outer_angle), 0.0, light.outer_angle)
+    light.static = static
     t.finish()
     return light
 
@@ -397,3 +400,18 @@ def load_scene(scene, overrides: list[str] | None = None) -> Scene:
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{path}: not valid TOML: {exc} (allowed: TOML as in DESIGN.md)") from None
     return scene_from_dict(apply_overrides(data, overrides or [], path), path, os.path.dirname(os.path.abspath(path)))
+
+
+def parse_part(part: str, value, source: str = "<update>"):
+    """A scene part for ``Renderer.update``: model objects pass through, dicts are validated.
+
+    ``part`` is ``camera`` (a Camera or table), ``lights``, ``medium`` or ``surfaces`` (one
+    item or a list of them).
+    """
+    if part == "camera":
+        return value if isinstance(value, Camera) else _camera(value, source)
+    parse, kind = {"lights": (lambda d, w: _light(d, w, source), Light),
+                   "medium": (lambda d, w: _medium(d, w, source, "."), Medium),
+                   "surfaces": (lambda d, w: _surface(d, w, source, "."), Surface)}[part]
+    items = value if isinstance(value, (list, tuple)) else [value]
+    return [v if isinstance(v, kind) else parse(v, f"{part}[{i}]") for i, v in enumerate(items)]

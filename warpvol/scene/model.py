@@ -22,6 +22,7 @@ class Camera:
     fov_y: float = 40.0  # vertical field of view, degrees
     width: int = 128
     height: int = 96
+    static: bool = True
 
 
 @dataclass
@@ -32,6 +33,7 @@ class Light:
     direction: Vec3 = (0.0, -1.0, 0.0)  # travel direction (directional), cone axis (spot)
     inner_angle: float = 20.0  # spot: full strength inside this half-angle, degrees
     outer_angle: float = 30.0  # spot: zero outside this half-angle, degrees
+    static: bool = True
 
 
 @dataclass

@@ -1,7 +1,7 @@
-"""One module per technique, each with NAME, SETTINGS and render(scene, device, settings, progress)."""
+"""One module per technique, each a ``Technique`` subclass exported as ``TECHNIQUE``."""
 
 from . import raymarch, reference
 
-TECHNIQUES = {m.NAME: m for m in (reference, raymarch)}
+TECHNIQUES = {m.TECHNIQUE.NAME: m.TECHNIQUE for m in (reference, raymarch)}
 
 __all__ = ["TECHNIQUES"]

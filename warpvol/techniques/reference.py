@@ -32,14 +32,15 @@ from tqdm import tqdm
 
 from .. import device as dev
 from ..geometry.camera import PinholeCamera, camera_ray, pinhole
-from ..geometry.mesh import SurfaceBuffers, Surfaces, surface_hit
-from ..media.volume import Media, MediaBuffers, choose_medium, in_scatter_at, ray_box, sigma_t_at, transmittance_estimate
+from ..geometry.mesh import Surfaces, surface_hit
+from ..media.volume import Media, choose_medium, in_scatter_at, ray_box, sigma_t_at, transmittance_estimate
 from ..physics.brdf import brdf_eval
 from ..physics.constants import INF, PI, RAY_EPS, TWO_PI
 from ..physics.lights import DIRECTIONAL, Light, light_incident
 from ..physics.phase import orthonormal_basis, phase_sample
-from ..pipeline import Setting, timed
-from ..shading import light_array, light_transmittance, surface_direct
+from ..pipeline import Setting, Stage, Technique
+from ..shading import light_transmittance, surface_direct
+from ..upload import SceneUploads
 
 NAME = "reference"
 SETTINGS = {
@@ -205,31 +206,47 @@ def trace_paths(offset: int, cam: PinholeCamera, m: Media, s: Surfaces, lights: 
     accum[tid] = accum[tid] + wp.vec3d(wp.float64(total[0]), wp.float64(total[1]), wp.float64(total[2]))
 
 
-def render(scene, device: str, settings: dict, progress: bool = True):
-    """Render ``scene``; returns (image H x W x 3 float32, {stage: seconds})."""
-    timings: dict = {}
-    with timed(timings, "setup", device):
-        cam = pinhole(scene.camera)
-        media = MediaBuffers(scene, device)
-        surfaces = SurfaceBuffers(scene, device)
-        lights = light_array(scene, device)
+class Reference(Technique):
+    """The volumetric path tracer (see the module docstring). Stages: uploads, then trace."""
+
+    NAME = NAME
+    SETTINGS = SETTINGS
+
+    def __init__(self, scene, device, settings, progress=False):
+        super().__init__(scene, device, settings, progress)
+        self.uploads = SceneUploads(self)
+        self.image = None
+
+    def stages(self):
+        return self.uploads.stages() + [
+            Stage("trace", self._trace, reads=("camera", "background"), settings=tuple(SETTINGS),
+                  after=("medium", "surfaces", "lights")),
+        ]
+
+    def _trace(self):
+        scene, u, settings = self.scene, self.uploads, self.settings
         npix = scene.camera.width * scene.camera.height
-        accum = wp.zeros(npix, dtype=wp.vec3d, device=device)
-    spp = settings["spp"]
-    channels = [-1] if media.grey else [0, 1, 2]
-    # launches of about 2^20 paths keep the progress bar moving and sums well-conditioned
-    per_launch = max(1, min(spp, (1 << 20) // max(npix, 1)))
-    passes = [(ch, k) for ch in channels for k in range(0, spp, per_launch)]
-    st = PathSettings()
-    st.max_events = settings["max_bounces"] if settings["max_bounces"] >= 0 else 1 << 30
-    st.pixel_area = settings["pixel_area"]
-    with timed(timings, "trace", device):
-        bar = tqdm(passes, desc=f"reference {spp} spp", unit="pass", delay=1.0, disable=not progress, leave=False)
+        accum = wp.zeros(npix, dtype=wp.vec3d, device=self.device)
+        spp = settings["spp"]
+        channels = [-1] if u.media.grey else [0, 1, 2]
+        # launches of about 2^20 paths keep the progress bar moving and sums well-conditioned
+        per_launch = max(1, min(spp, (1 << 20) // max(npix, 1)))
+        passes = [(ch, k) for ch in channels for k in range(0, spp, per_launch)]
+        st = PathSettings()
+        st.max_events = settings["max_bounces"] if settings["max_bounces"] >= 0 else 1 << 30
+        st.pixel_area = settings["pixel_area"]
+        cam = pinhole(scene.camera)
+        bar = tqdm(passes, desc=f"reference {spp} spp", unit="pass", delay=1.0, disable=not self.progress, leave=False)
         for i, (ch, k) in enumerate(bar):
             st.channel = ch
             st.spp = min(per_launch, spp - k)
             st.seed = (settings["seed"] * 1_000_003 + i) % (2**31)
-            dev.launch(trace_paths, npix, [cam, media.struct, surfaces.struct, lights,
-                                           wp.vec3(*scene.background), st, accum], device)
-    image = (accum.numpy() / spp).astype(np.float32).reshape(scene.camera.height, scene.camera.width, 3)
-    return image, timings
+            dev.launch(trace_paths, npix, [cam, u.media.struct, u.surfaces, u.lights,
+                                           wp.vec3(*scene.background), st, accum], self.device)
+        self.image = (accum.numpy() / spp).astype(np.float32)
+
+    def output(self):
+        return self.image
+
+
+TECHNIQUE = Reference

@@ -1,0 +1,147 @@
+"""The pipeline runs only what the scene calls for and what a change invalidated.
+
+The rule is papers/003 Table 1, asserted through ``frame.stages`` on the raymarch technique
+with a baked light volume: ``medium`` is its density stage (the grid is injected into
+device memory), ``light_volume`` its propagation stage (transmittance from each light,
+reads the medium and the lights), ``march`` the per-frame image.
+"""
+
+import numpy as np
+import pytest
+
+import warpvol as wv
+from warpvol.pipeline import Pipeline, Stage, Technique
+from warpvol.scene.procedural import smoke_grid
+
+SMALL = dict(shadow_grid=8, shadow_steps=8, steps=16)
+
+
+def smoke(static_medium=True, static_lights=True, surfaces=True, lights=True):
+    d = smoke_grid()
+    d["camera"].update(width=24, height=18)
+    d["media"][0]["static"] = static_medium
+    for light in d["lights"]:
+        light["static"] = static_lights
+    if not surfaces:
+        d["surfaces"] = []
+    if not lights:
+        d["lights"] = []
+    return d
+
+
+def statuses(frame, names=("medium", "light_volume", "march")):
+    return tuple(frame.stages[n].status for n in names)
+
+
+@pytest.mark.parametrize("static_medium, static_lights, expected", [
+    # Table 1: nothing static -> injection and propagation every frame
+    (False, False, ("ran", "ran", "ran")),
+    # static medium -> injection precomputed, propagation per frame
+    (True, False, ("cached", "ran", "ran")),
+    # static medium and lighting -> both precomputed (and with a still camera the march too)
+    (True, True, ("cached", "cached", "cached")),
+])
+def test_table1_rule(device, static_medium, static_lights, expected):
+    r = wv.Renderer(smoke(static_medium, static_lights), technique="raymarch", device=device, **SMALL)
+    first = r.render()
+    assert statuses(first) == ("ran", "ran", "ran")  # frame 1 computes everything
+    for _ in range(2):  # from frame 2 on
+        assert statuses(r.render()) == expected
+
+
+def test_moving_a_light_reruns_what_depends_on_lights_only(device):
+    r = wv.Renderer(smoke(), technique="raymarch", device=device, **SMALL)
+    r.render()
+    moved = dict(smoke()["lights"][0], direction=[0.5, -1.0, -0.3])
+    r.update(lights=[moved])
+    frame = r.render()
+    assert {n: s.status for n, s in frame.stages.items()} == {
+        "medium": "cached", "surfaces": "cached", "lights": "ran", "light_volume": "ran", "march": "ran"}
+    # the cached stages hold what a fresh render of the changed scene computes
+    fresh = wv.render(smoke() | {"lights": [moved]}, technique="raymarch", device=device, **SMALL)
+    np.testing.assert_array_equal(frame.image, fresh.image)
+    assert not np.array_equal(frame.image, wv.render(smoke(), technique="raymarch", device=device, **SMALL).image)
+
+
+def test_camera_and_settings_rerun_only_their_readers(device):
+    r = wv.Renderer(smoke(), technique="raymarch", device=device, **SMALL)
+    before = r.render().image
+    r.update(camera=dict(smoke()["camera"], origin=[0.5, 0.2, 4.2]))
+    assert statuses(r.render()) == ("cached", "cached", "ran")
+    r.update(settings={"steps": 8})  # read by the march only
+    assert statuses(r.render()) == ("cached", "cached", "ran")
+    r.update(settings={"shadow_grid": 6})  # read by the light volume
+    assert statuses(r.render()) == ("cached", "ran", "ran")
+    r.update(camera=smoke()["camera"], settings=SMALL)
+    np.testing.assert_array_equal(r.render().image, before)
+
+
+@pytest.mark.parametrize("scene, settings, skipped", [
+    (smoke(surfaces=False), SMALL, {"surfaces"}),  # no occluders: no BVH
+    (smoke(lights=False), SMALL, {"light_volume"}),  # nothing to propagate
+    (smoke(), dict(SMALL, shadow_grid=0), {"light_volume"}),  # marched shadow rays asked for
+    ("point-in-fog", SMALL, {"light_volume", "surfaces"}),  # homogeneous: transmittance is exact; no walls
+])
+def test_stages_the_scene_does_not_call_for_are_skipped(scene, settings, skipped):
+    frame = wv.render(scene, technique="raymarch", device="cpu", **settings)
+    assert {n for n, s in frame.stages.items() if s.status == "skipped"} == skipped
+    assert all(s.status == "ran" for n, s in frame.stages.items() if n not in skipped)
+
+
+def test_timings_are_the_seconds_view_of_stages():
+    frame = wv.render(smoke(), technique="raymarch", device="cpu", **SMALL)
+    assert frame.timings == {n: s.ms / 1000.0 for n, s in frame.stages.items()}
+    assert all(s.ms > 0.0 for s in frame.stages.values())
+
+
+def test_update_validates_like_the_loader():
+    r = wv.Renderer(smoke(), technique="raymarch", device="cpu", **SMALL)
+    with pytest.raises(wv.SceneError, match=r"lights\[0\]\.intensity.*allowed"):
+        r.update(lights=[{"type": "point", "position": [0, 0, 0], "intensity": -1.0}])
+    with pytest.raises(wv.SettingsError, match=r"shadow_grid=1 .*allowed: 0 or 2\.\.512"):
+        r.update(settings={"shadow_grid": 1})
+
+
+class _Counting(Technique):
+    """Pure-Python stages that count their runs: the scheduling rule without kernels."""
+
+    NAME = "counting"
+    SETTINGS = {}
+
+    def __init__(self, scene, stages):
+        super().__init__(scene, "cpu", {"k": 1})
+        self._stages = stages
+        self.count = {}
+
+    def stages(self):
+        return [Stage(name, lambda n=name: self.count.__setitem__(n, self.count.get(n, 0) + 1), **kw)
+                for name, kw in self._stages]
+
+    def output(self):
+        return np.zeros((1, 3), np.float32)
+
+
+def test_a_rerun_propagates_downstream_and_nowhere_else():
+    graph = [("a", dict(reads=("medium",))), ("b", dict(reads=("lights",))),
+             ("c", dict(after=("a",))), ("d", dict(after=("b", "c"), settings=("k",)))]
+    t = _Counting(wv.load_scene("fog-box"), graph)
+    p = Pipeline(t)
+    p.run()
+    p.changed("medium")
+    runs = p.run()
+    assert {n: r.status for n, r in runs.items()} == {"a": "ran", "b": "cached", "c": "ran", "d": "ran"}
+    p.changed("lights")
+    runs = p.run()
+    assert {n: r.status for n, r in runs.items()} == {"a": "cached", "b": "ran", "c": "cached", "d": "ran"}
+    t.settings = {"k": 2}
+    assert {n: r.status for n, r in p.run().items()} == {"a": "cached", "b": "cached", "c": "cached", "d": "ran"}
+    assert t.count == {"a": 2, "b": 2, "c": 2, "d": 4}
+
+
+def test_a_stage_declaring_unknown_inputs_is_an_error():
+    t = _Counting(wv.load_scene("fog-box"), [("a", dict(after=("later",))), ("later", {})])
+    with pytest.raises(ValueError, match=r"stage 'a' declares unknown inputs \['later'\]"):
+        Pipeline(t).run()
+    t = _Counting(wv.load_scene("fog-box"), [("a", dict(reads=("weather",)))])
+    with pytest.raises(ValueError, match=r"unknown inputs \['weather'\]"):
+        Pipeline(t).run()
