@@ -12,11 +12,12 @@ import warp as _wp
 
 _wp.config.quiet = True  # before any struct or kernel initialises Warp
 
-from .api import Renderer, render, techniques  # noqa: E402
+from .api import Renderer, render, technique_names  # noqa: E402
 from .image import load_image, save_image  # noqa: E402
+from .metrics import relative_rmse  # noqa: E402
 from .pipeline import Frame, SettingsError  # noqa: E402
 from .scene import Scene, SceneError, load_scene  # noqa: E402
 
 __version__ = "0.1.0"
 
-__all__ = ["Frame", "Renderer", "Scene", "SceneError", "SettingsError", "load_image", "load_scene", "render", "save_image", "techniques"]
+__all__ = ["Frame", "Renderer", "Scene", "SceneError", "SettingsError", "load_image", "load_scene", "relative_rmse", "render", "save_image", "technique_names"]

@@ -6,12 +6,12 @@ from __future__ import annotations
 import dataclasses
 
 from . import device as dev
-from .pipeline import Frame, Pipeline, SettingsError, resolve_settings
+from .pipeline import PARTS, Frame, Pipeline, SettingsError, resolve_settings
 from .scene import load_scene
 from .scene.load import parse_part
 
 
-def techniques() -> list[str]:
+def technique_names() -> list[str]:
     from .techniques import TECHNIQUES
 
     return sorted(TECHNIQUES)
@@ -85,6 +85,12 @@ class Renderer:
         if changes:
             t.scene = dataclasses.replace(t.scene, **changes)
         self._pipeline.changed(*parts)
+
+    def touch(self, *parts: str) -> None:
+        """Mark scene parts (``medium``, ``lights``, ``camera``, ``surfaces``, ``background``;
+        none named: all of them) changed without replacing them: after an edit in place, or
+        to time a full frame."""
+        self._pipeline.changed(*(parts or PARTS))
 
     def render(self) -> Frame:
         """Run the stages the scene calls for and the changes invalidated; return the Frame."""

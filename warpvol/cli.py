@@ -1,7 +1,9 @@
-"""Command line: ``python -m warpvol render | scenes``.
+"""Command line: ``python -m warpvol render | bench | view | scenes``.
 
     python -m warpvol render SCENE --technique NAME --out OUT.exr [--out OUT.png] [--device cpu|cuda]
                              [--spp N] [--set key=value ...] [--timings] [--exposure EV]
+    python -m warpvol bench --list | SWEEP [--quick] [--device ...] [--out results] | report [SWEEP ...]
+    python -m warpvol view SCENE [--screenshot FILE.png] [--set key=value ...]
     python -m warpvol scenes
 
 ``--set`` takes a technique setting (``--set steps=128``) or a scene key in dotted form
@@ -57,6 +59,54 @@ def cmd_render(args) -> int:
     return 0
 
 
+def cmd_bench(args) -> int:
+    import os
+
+    from bench.harness import run_sweep
+    from bench.report import write_report
+    from bench.sweeps import SWEEPS
+
+    from warpvol import device as dev
+
+    if args.list or not args.sweep:
+        for name, sweep in SWEEPS.items():
+            state = "runnable" if sweep.available else f"waits for {sweep.technique} (issue {sweep.issue})"
+            print(f"{name:<22} {state:<40} {sweep.doc}")
+        return 0
+    if args.sweep[0] == "report":
+        names = args.sweep[1:] or [n for n in SWEEPS if os.path.isdir(os.path.join(args.out, n))]
+        for name in names:
+            if name not in SWEEPS:
+                raise ValueError(f"unknown sweep {name!r} (allowed: {', '.join(SWEEPS)})")
+            path = write_report(args.out, name)
+            print(f"{name}: {path or 'no results yet'}")
+        return 0
+    for name in args.sweep:
+        if name not in SWEEPS:
+            raise ValueError(f"unknown sweep {name!r} (allowed: {', '.join(SWEEPS)}; see --list)")
+        SWEEPS[name].points(args.quick)  # a sweep whose technique has not landed says so here
+    device = dev.pick(args.device)
+    for name in args.sweep:
+        path = run_sweep(SWEEPS[name], device, args.out, quick=args.quick)
+        print(f"{name}: rows in {path}; report in {write_report(args.out, name)}")
+    return 0
+
+
+def cmd_view(args) -> int:
+    import warpvol as wv
+    from viz import scene_plotter
+
+    scene = wv.load_scene(args.scene, args.set or [])
+    plotter = scene_plotter(scene, off_screen=args.screenshot is not None)
+    if args.screenshot:
+        plotter.screenshot(args.screenshot)
+        plotter.close()
+        print(f"{scene.name}: view -> {args.screenshot}")
+    else:
+        plotter.show()
+    return 0
+
+
 def cmd_scenes(args) -> int:
     from warpvol.scene.procedural import BUILTIN
 
@@ -78,6 +128,18 @@ def main(argv: list[str] | None = None) -> int:
     r.add_argument("--exposure", type=float, default=0.0, help="PNG exposure in stops (default 0)")
     r.add_argument("--timings", action="store_true", help="print per-stage times")
     r.set_defaults(func=cmd_render)
+    b = sub.add_parser("bench", help="run a benchmark sweep, list them, or write their reports")
+    b.add_argument("sweep", nargs="*", help="sweep names, or `report [SWEEP ...]` (see --list)")
+    b.add_argument("--list", action="store_true", help="list the sweeps and whether they can run yet")
+    b.add_argument("--quick", action="store_true", help="a reduced sweep that finishes in seconds")
+    b.add_argument("--device", default=None, help="cpu | cuda | cuda:N (default: $WARPVOL_DEVICE, else CUDA if present)")
+    b.add_argument("--out", default="results", help="results folder (default: results)")
+    b.set_defaults(func=cmd_bench)
+    v = sub.add_parser("view", help="look at a scene in pyvista: media, lights, surfaces, camera")
+    v.add_argument("scene", help="a .toml scene file or a built-in scene name")
+    v.add_argument("--screenshot", default=None, help="render off screen to this PNG instead of opening a window")
+    v.add_argument("--set", action="append", metavar="KEY=VALUE", help="scene key override")
+    v.set_defaults(func=cmd_view)
     s = sub.add_parser("scenes", help="list the built-in scenes")
     s.set_defaults(func=cmd_scenes)
     args = parser.parse_args(argv)

@@ -20,9 +20,10 @@ downstream and nothing else. This is the rule of Zhou et al. 2007 (papers/003), 
 from __future__ import annotations
 
 import time
+from collections import defaultdict
 from contextlib import contextmanager
-from dataclasses import dataclass, field
-from typing import Callable
+from dataclasses import dataclass
+from typing import Callable, NamedTuple
 
 import numpy as np
 import warp as wp
@@ -59,8 +60,7 @@ def resolve_settings(technique: str, spec: dict[str, Setting], given: dict, base
     return out
 
 
-@dataclass(frozen=True)
-class Stage:
+class Stage(NamedTuple):
     """One pass of a technique.
 
     ``run`` computes the stage's outputs and keeps them on the technique. ``reads`` names
@@ -76,8 +76,7 @@ class Stage:
     needed: bool = True
 
 
-@dataclass(frozen=True)
-class StageRun:
+class StageRun(NamedTuple):
     status: str  # "ran" | "cached" | "skipped"
     ms: float  # device-synchronised wall time; 0 unless it ran
 
@@ -166,7 +165,7 @@ class Pipeline:
         self.technique = technique
         self.versions = dict.fromkeys(PARTS, 0)
         self._keys: dict[str, tuple] = {}  # stage -> cache key it last ran with
-        self._runs: dict[str, int] = {}  # stage -> times it ran (its output's version)
+        self._runs: dict[str, int] = defaultdict(int)  # stage -> times it ran (its output's version)
         self._dynamic = dynamic_parts(technique.scene)
         self._frames = 0
         self._checked: set[str] = set()
@@ -205,8 +204,8 @@ class Pipeline:
                 keys.pop(stage.name, None)
                 out[stage.name] = StageRun("skipped", 0.0)
                 continue
-            key = (tuple(versions[p] for p in stage.reads), tuple(settings[s] for s in stage.settings),
-                   tuple(runs.get(a, 0) for a in stage.after))
+            key = (tuple(map(versions.__getitem__, stage.reads)), tuple(map(settings.__getitem__, stage.settings)),
+                   tuple(map(runs.__getitem__, stage.after)))
             if keys.get(stage.name) == key:
                 out[stage.name] = StageRun("cached", 0.0)
                 continue
@@ -215,7 +214,7 @@ class Pipeline:
             wp.synchronize_device(device)
             out[stage.name] = StageRun("ran", (time.perf_counter() - t0) * 1000.0)
             keys[stage.name] = key
-            runs[stage.name] = runs.get(stage.name, 0) + 1
+            runs[stage.name] += 1
         return out
 
 

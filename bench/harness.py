@@ -1,0 +1,258 @@
+"""The sweep runner: measure each point of a sweep, write each row as soon as it is measured.
+
+A sweep is a list of independent points (parameter dicts). ``run_sweep`` measures the
+points that ``results/<sweep>/<device>.json`` does not hold yet (so an interrupted run
+resumes), shows a progress bar with ETA, and rewrites the file after every row. Points
+can be handed to any ``concurrent.futures.Executor`` (``measure_point`` is a top-level
+function of picklable arguments), so a cluster can run them.
+
+Frame times exclude JIT compilation and warm-up: the first frame is timed apart
+(``first_frame_ms``); then ``repeats`` frames are timed with every scene part marked
+changed, so every stage the scene calls for runs. Each row records the median and the
+spread (min..max) over those frames, the per-stage medians, and the peak memory.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import platform
+import re
+import statistics
+import subprocess
+import time
+from dataclasses import fields, is_dataclass
+from pathlib import Path
+
+import numpy as np
+import warp as wp
+from tqdm import tqdm
+
+import warpvol as wv
+
+REPO = Path(__file__).resolve().parent.parent
+CACHE = Path(os.environ.get("WARPVOL_CACHE", Path.home() / ".cache" / "warpvol"))
+
+
+def cpu_name() -> str:
+    try:
+        with open("/proc/cpuinfo") as fh:
+            for line in fh:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def device_name(device: str) -> str:
+    """What the row ran on, in words: the GPU's name, or the CPU model and its cores."""
+    if device.startswith("cuda"):
+        return wp.get_device(device).name
+    return f"{cpu_name()}, {os.cpu_count()} cores"
+
+
+def device_slug(device: str) -> str:
+    """File name for a device's rows: ``cpu``, or the GPU's name (``nvidia-h200``)."""
+    if not device.startswith("cuda"):
+        return "cpu"
+    name = wp.get_device(device).name.lower().replace("geforce ", "")
+    return re.sub(r"[^a-z0-9]+", "-", name).strip("-")
+
+
+def git_commit() -> str:
+    r = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, cwd=REPO)
+    return r.stdout.strip() or "unknown"
+
+
+class PeakMemory:
+    """Peak memory while the block runs, in MB above what was in use when it started.
+
+    CPU: the process's resident-set high-water mark (reset through /proc/self/clear_refs).
+    CUDA: Warp's memory-pool high-water mark; it cannot be reset, so a block that stays
+    below an earlier peak reports its own allocations at the end instead.
+    """
+
+    def __init__(self, device: str):
+        self.device = device
+        self.mb = 0.0
+
+    @staticmethod
+    def _status(key: str) -> float:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith(key):
+                    return float(line.split()[1]) / 1024.0
+        return 0.0
+
+    def __enter__(self):
+        if self.device.startswith("cuda"):
+            self.base = wp.get_mempool_used_mem_current(self.device) / 2**20
+            self.high = wp.get_mempool_used_mem_high(self.device) / 2**20
+        else:
+            try:
+                with open("/proc/self/clear_refs", "w") as fh:
+                    fh.write("5")
+            except OSError:
+                pass
+            self.base = self._status("VmRSS:")
+        return self
+
+    def __exit__(self, *exc):
+        if self.device.startswith("cuda"):
+            high = wp.get_mempool_used_mem_high(self.device) / 2**20
+            now = wp.get_mempool_used_mem_current(self.device) / 2**20
+            self.mb = (high if high > self.high else now) - self.base
+        else:
+            self.mb = self._status("VmHWM:") - self.base
+        self.mb = max(self.mb, 0.0)
+
+
+def time_frames(renderer: wv.Renderer, repeats: int, invalidate: tuple[str, ...] | None = ()) -> dict:
+    """Time ``repeats`` frames after a warm-up frame.
+
+    ``invalidate``: scene parts marked changed before each frame (``()``: all parts, so every
+    stage the scene calls for runs; ``None``: none, as for a static scene).
+    """
+    t0 = time.perf_counter()
+    renderer.render()
+    first = time.perf_counter() - t0
+    times, stages = [], []
+    for _ in range(repeats):
+        if invalidate is not None:
+            renderer.touch(*invalidate)
+        t = time.perf_counter()
+        frame = renderer.render()
+        times.append(time.perf_counter() - t)
+        stages.append(frame.stages)
+    return {
+        "first_frame_ms": first * 1000.0,
+        "median_ms": statistics.median(times) * 1000.0,
+        "spread_ms": [min(times) * 1000.0, max(times) * 1000.0],
+        "frames": repeats,
+        "stages": {name: {"status": stages[-1][name].status,
+                          "median_ms": statistics.median(s[name].ms for s in stages)} for name in stages[-1]},
+        "frame": frame,
+    }
+
+
+def digest(obj) -> str:
+    """A stable hash of a scene (dataclasses, tuples, numpy arrays) and settings."""
+    h = hashlib.sha256()
+
+    def feed(x):
+        if is_dataclass(x):
+            h.update(type(x).__name__.encode())
+            for f in fields(x):
+                if f.name != "source":
+                    h.update(f.name.encode())
+                    feed(getattr(x, f.name))
+        elif isinstance(x, np.ndarray):
+            h.update(str(x.dtype).encode() + str(x.shape).encode())
+            h.update(np.ascontiguousarray(x).tobytes())
+        elif isinstance(x, dict):
+            for k in sorted(x):
+                h.update(str(k).encode())
+                feed(x[k])
+        elif isinstance(x, (list, tuple)):
+            h.update(b"[")
+            for v in x:
+                feed(v)
+            h.update(b"]")
+        else:
+            h.update(repr(x).encode())
+
+    feed(obj)
+    return h.hexdigest()[:16]
+
+
+def reference_image(scene, device: str, **settings) -> tuple[np.ndarray, float]:
+    """The reference rendering of ``scene`` (mean of two seeds) and its own relative RMSE.
+
+    Cached on disk under $WARPVOL_CACHE (default ~/.cache/warpvol), keyed by the scene and
+    the settings, so a sweep renders it once. The noise floor is estimated from the two
+    seeds: per pixel the mean's standard error is |a - b| / 2.
+    """
+    scene = wv.load_scene(scene)
+    path = CACHE / "reference" / f"{scene.name}-{digest([scene, settings])}.npz"
+    if path.exists():
+        data = np.load(path)
+        return data["image"], float(data["floor"])
+    a = wv.render(scene, technique="reference", device=device, progress=True, seed=1, **settings).image
+    b = wv.render(scene, technique="reference", device=device, progress=True, seed=2, **settings).image
+    image = 0.5 * (a.astype(np.float64) + b)
+    se = np.abs(a.astype(np.float64) - b) / 2.0
+    floor = float(np.sqrt(np.mean(se * se / (image * image + 1e-2))))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(path, image=image.astype(np.float32), floor=floor)
+    return image.astype(np.float32), floor
+
+
+def row_key(params: dict) -> str:
+    return json.dumps(params, sort_keys=True)
+
+
+def results_path(out: Path, sweep: str, device: str, quick: bool) -> Path:
+    return Path(out) / sweep / f"{device_slug(device)}{'-quick' if quick else ''}.json"
+
+
+def load_rows(path: Path) -> list[dict]:
+    if not path.exists():
+        return []
+    return json.loads(path.read_text())["rows"]
+
+
+def write_rows(path: Path, sweep, rows: list[dict], command: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    doc = {"sweep": sweep.name, "description": sweep.doc, "command": command, "rows": rows}
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(doc, indent=1) + "\n")
+    tmp.replace(path)  # an interrupted write never leaves a half file
+
+
+def measure_point(sweep_name: str, params: dict, device: str, quick: bool) -> dict:
+    """Measure one point of a sweep: the row, with the common fields filled in."""
+    from .sweeps import SWEEPS
+
+    sweep = SWEEPS[sweep_name]
+    with PeakMemory(device) as mem:
+        row = sweep.measure(params, device, quick)
+    row.pop("frame", None)
+    return {"sweep": sweep_name, "technique": sweep.technique, "params": params, **row,
+            "peak_mem_mb": round(mem.mb, 1), "device": device_name(device), "warp": wp.config.version,
+            "commit": git_commit(), "paper": sweep.paper_figure(params),
+            "measured": time.strftime("%Y-%m-%d %H:%M:%S")}
+
+
+def run_sweep(sweep, device: str, out: Path, quick: bool = False, executor=None, progress: bool = True,
+              command: str = "") -> Path:
+    """Measure every point of ``sweep`` not yet in its results file; return the file's path."""
+    path = results_path(out, sweep.name, device, quick)
+    rows = load_rows(path)
+    done = {row_key(r["params"]) for r in rows}
+    todo = [p for p in sweep.points(quick) if row_key(p) not in done]
+    bar = tqdm(total=len(todo), desc=sweep.name, unit="point", disable=not progress)
+    command = command or f"python -m warpvol bench {sweep.name}{' --quick' if quick else ''} --device {device}"
+    order = {row_key(p): i for i, p in enumerate(sweep.points(quick))}
+
+    def keep(row):
+        rows.append(row)
+        rows.sort(key=lambda r: order.get(row_key(r["params"]), len(order)))
+        write_rows(path, sweep, rows, command)
+        bar.update(1)
+
+    if executor is None:
+        for params in todo:
+            bar.set_postfix_str(", ".join(f"{k}={v}" for k, v in params.items()), refresh=False)
+            keep(measure_point(sweep.name, params, device, quick))
+    else:
+        futures = [executor.submit(measure_point, sweep.name, p, device, quick) for p in todo]
+        from concurrent.futures import as_completed
+
+        for fut in as_completed(futures):
+            keep(fut.result())
+    bar.close()
+    if not todo:
+        write_rows(path, sweep, rows, command)
+    return path

@@ -1,0 +1,150 @@
+"""Reports from the sweeps' JSON: ``results/<sweep>/README.md`` and one PNG plot per device.
+
+    python -m warpvol bench report [SWEEP ...] [--out results]
+
+Paper sweeps: our table beside the paper's (paper FPS, ours, both normalised to the
+table's first row, so the shape of cost growth can be compared across hardware).
+Accuracy sweeps: relative RMSE against ms per frame, with the error-vs-time front.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .sweeps import SWEEPS
+
+
+def _fmt(x, digits=3) -> str:
+    if x is None:
+        return "–"
+    if isinstance(x, float):
+        return f"{x:.{digits}g}"
+    return str(x)
+
+
+def _params(row) -> str:
+    return ", ".join(f"{k}={v}" for k, v in row["params"].items())
+
+
+def _stages(row) -> str:
+    return ", ".join(f"{n} {s['median_ms']:.2f}" for n, s in row["stages"].items() if s["status"] == "ran")
+
+
+def pareto_front(points: list[tuple[float, float]]) -> list[int]:
+    """Indices of the points no other point beats in both time and error, by increasing time."""
+    order = sorted(range(len(points)), key=lambda i: (points[i][0], points[i][1]))
+    front, best = [], np.inf
+    for i in order:
+        if points[i][1] < best:
+            front.append(i)
+            best = points[i][1]
+    return front
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def accuracy_section(rows: list[dict], png: Path) -> list[str]:
+    pts = [(r["median_ms"], r["rel_rmse"]) for r in rows]
+    front = set(pareto_front(pts))
+    lines = ["| parameters | ms / frame (min..max) | relative RMSE | on the front | stages ran (ms) | peak MB |",
+             "|---|---|---|---|---|---|"]
+    for i, r in enumerate(rows):
+        lo, hi = r["spread_ms"]
+        lines.append(f"| {_params(r)} | {r['median_ms']:.2f} ({lo:.2f}..{hi:.2f}) | {r['rel_rmse']:.4f} | "
+                     f"{'yes' if i in front else ''} | {_stages(r)} | {r['peak_mem_mb']:.0f} |")
+    floor = rows[0]["reference"]["rel_rmse_floor"]
+    lines += ["", f"Reference: {rows[0]['reference']['spp']} spp, pixel centres, max_bounces = "
+              f"{rows[0]['reference']['max_bounces']}; its own noise is a relative RMSE of {floor:.4f} "
+              "(from two seeds), the floor below which differences are not resolved."]
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    keys = sorted({k for r in rows for k in r["params"]})
+    group_key = keys[0] if len(keys) > 1 else None  # first parameter: one series per value
+    groups = {}
+    for r in rows:
+        groups.setdefault(r["params"].get(group_key), []).append(r)
+    for value, rs in groups.items():
+        ax.plot([r["median_ms"] for r in rs], [r["rel_rmse"] for r in rs], "o-", ms=4,
+                label=f"{group_key}={value}" if group_key else None)
+    f = sorted(front, key=lambda i: pts[i][0])
+    ax.plot([pts[i][0] for i in f], [pts[i][1] for i in f], "k--", lw=1, label="front")
+    ax.axhline(floor, color="grey", lw=0.8, ls=":", label="reference noise")
+    ax.set(xscale="log", yscale="log", xlabel="ms per frame", ylabel="relative RMSE vs reference",
+           title=f"{rows[0]['sweep']} — {rows[0]['device']}")
+    ax.legend(fontsize=8)
+    ax.grid(True, which="both", lw=0.3)
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
+    return lines
+
+
+def paper_section(rows: list[dict], png: Path) -> list[str]:
+    ours = [1000.0 / r["median_ms"] for r in rows]
+    paper = [r["paper"] if isinstance(r["paper"], (int, float)) else None for r in rows]
+    p0 = paper[0]
+    lines = ["| parameters | paper FPS | ours FPS | paper ÷ first row | ours ÷ first row | stages ran (ms) | peak MB |",
+             "|---|---|---|---|---|---|---|"]
+    for r, o, p in zip(rows, ours, paper):
+        lines.append(f"| {_params(r)} | {_fmt(p)} | {o:.1f} | {_fmt(p / p0 if p and p0 else None)} | "
+                     f"{o / ours[0]:.3f} | {_stages(r)} | {r['peak_mem_mb']:.0f} |")
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    x = np.arange(len(rows))
+    ax.plot(x, [o / ours[0] for o in ours], "o-", label=f"ours ({rows[0]['device']})")
+    if p0:
+        ax.plot(x, [p / p0 if p else np.nan for p in paper], "s--", label="paper")
+    ax.set_xticks(x, [_params(r) for r in rows], rotation=30, ha="right", fontsize=7)
+    ax.set(ylabel="FPS ÷ first row", title=rows[0]["sweep"])
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
+    return lines
+
+
+def overhead_section(rows: list[dict], png: Path | None) -> list[str]:
+    lines = ["| case | frame ms (median) | overhead µs | frames |", "|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['params']['case']} | {r['median_ms']:.4f} | {r['overhead_us']:.1f} | {r['frames']} |")
+    return lines
+
+
+SECTIONS = {"accuracy": accuracy_section, "paper": paper_section, "overhead": overhead_section}
+
+
+def write_report(out: Path, name: str) -> Path | None:
+    """Write ``out/<name>/README.md`` (and plots) from the JSON there; None if there is none."""
+    sweep = SWEEPS[name]
+    folder = Path(out) / name
+    files = sorted(folder.glob("*.json"))
+    if not files:
+        return None
+    md = [f"# {name}", "", sweep.doc + ".", ""]
+    for path in files:
+        doc = json.loads(path.read_text())
+        rows = doc["rows"]
+        if not rows:
+            continue
+        png = path.with_suffix(".png")
+        section = SECTIONS[sweep.kind](rows, png)
+        md += [f"## {rows[0]['device']}", "",
+               f"Measured by `{doc['command']}` (Warp {rows[0]['warp']}, commit {rows[0]['commit']}, "
+               f"{rows[0]['measured'][:10]}); data: [{path.name}]({path.name}). This page: "
+               f"`python -m warpvol bench report {name}`. Frame times exclude the first frame "
+               f"(JIT compile and warm-up: {rows[0]['first_frame_ms']:.0f} ms for the first row).", ""]
+        if png.exists():
+            md += [f"![{name}]({png.name})", ""]
+        md += section + [""]
+    (folder / "README.md").write_text("\n".join(md))
+    return folder / "README.md"

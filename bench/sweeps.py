@@ -1,0 +1,144 @@
+"""Named sweeps: one per table of the papers (bench/paper_tables.toml, a copy of
+../shared/paper_tables.toml), accuracy sweeps (error against the reference vs time) and the
+pipeline's own overhead. A paper's sweep becomes runnable when its technique lands.
+"""
+
+from __future__ import annotations
+
+import itertools
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import warpvol as wv
+
+from .harness import reference_image, time_frames
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+PAPER_TABLES = tomllib.loads((Path(__file__).parent / "paper_tables.toml").read_text())
+
+
+@dataclass
+class Sweep:
+    """A named list of independent points and how to measure one.
+
+    ``grid(quick)`` gives the points (parameter dicts); ``measure(params, device, quick)``
+    returns the row's measured fields. ``paper`` is the table's path in paper_tables.toml
+    and ``figure(table, params)`` the paper's number for a point. ``kind`` picks the report:
+    ``paper``, ``accuracy`` or ``overhead``.
+    """
+
+    name: str
+    doc: str
+    technique: str
+    kind: str
+    grid: Callable[[bool], list[dict]] | None = None
+    measure: Callable[[dict, str, bool], dict] | None = None
+    paper: tuple[str, ...] = ()
+    figure: Callable[[dict, dict], object] | None = None
+    issue: int | None = None
+
+    @property
+    def available(self) -> bool:
+        return self.grid is not None and self.technique in wv.technique_names()
+
+    def points(self, quick: bool = False) -> list[dict]:
+        if not self.available:
+            raise ValueError(f"sweep {self.name!r} waits for technique {self.technique!r} (issue {self.issue}); "
+                             f"runnable now: {', '.join(n for n, s in SWEEPS.items() if s.available)}")
+        return self.grid(quick)
+
+    def table(self) -> dict | None:
+        node = PAPER_TABLES
+        for key in self.paper:
+            node = node[key]
+        return node if self.paper else None
+
+    def paper_figure(self, params: dict):
+        return self.figure(self.table(), params) if self.figure and self.paper else None
+
+
+# --- raymarch: error against the reference vs time -----------------------------------------
+
+def _accuracy_scene(quick: bool):
+    """smoke-grid: a heterogeneous grid, a directional light, a floor it shadows."""
+    width, height = (32, 24) if quick else (160, 120)
+    return wv.load_scene("smoke-grid", [f"camera.width={width}", f"camera.height={height}"])
+
+
+REFERENCE_SPP = {True: 16, False: 1024}  # per seed; two seeds are averaged
+
+
+def _raymarch_grid(quick: bool) -> list[dict]:
+    steps = [4, 16] if quick else [4, 8, 16, 32, 64, 128, 256]
+    grids = [0, 8] if quick else [0, 16, 32, 64]
+    return [{"steps": s, "shadow_grid": g} for g, s in itertools.product(grids, steps)]
+
+
+def _raymarch_accuracy(params: dict, device: str, quick: bool) -> dict:
+    scene = _accuracy_scene(quick)
+    # pixel centres and single scattering: what the raymarch computes, without its error
+    ref, floor = reference_image(scene, device, spp=REFERENCE_SPP[quick], max_bounces=1, pixel_area=0)
+    r = wv.Renderer(scene, technique="raymarch", device=device, steps=params["steps"],
+                    shadow_steps=params["steps"], shadow_grid=params["shadow_grid"])
+    row = time_frames(r, repeats=2 if quick else 5)
+    row["rel_rmse"] = wv.relative_rmse(row["frame"].image, ref)
+    row["reference"] = {"spp": 2 * REFERENCE_SPP[quick], "max_bounces": 1, "pixel_area": 0, "rel_rmse_floor": floor}
+    row["scene"] = f"smoke-grid {scene.camera.width}x{scene.camera.height}"
+    return row
+
+
+# --- the pipeline's own cost per frame ----------------------------------------------------
+
+def _overhead_grid(quick: bool) -> list[dict]:
+    return [{"case": "all_cached"}, {"case": "all_ran"}]
+
+
+def _overhead(params: dict, device: str, quick: bool) -> dict:
+    """Frame time with every stage cached: nothing but the bookkeeping (stage list, cache keys,
+    the Frame). And, with every stage running, the frame's wall time minus the stages' own
+    times, which adds what the CPU thread pool costs the Python thread between launches.
+    On a 4x3-pixel smoke-grid."""
+    scene = wv.load_scene("smoke-grid", ["camera.width=4", "camera.height=3"])
+    r = wv.Renderer(scene, technique="raymarch", device=device, steps=4, shadow_grid=2, shadow_steps=2)
+    repeats = 20 if quick else 2000
+    if params["case"] == "all_cached":
+        row = time_frames(r, repeats, invalidate=None)
+        row["overhead_us"] = row["median_ms"] * 1000.0
+    else:
+        row = time_frames(r, repeats // 4)
+        row["overhead_us"] = (row["median_ms"] - sum(s["median_ms"] for s in row["stages"].values())) * 1000.0
+    return row
+
+
+# --- the papers' tables: runnable once their techniques land ------------------------------
+
+def _row_fps(table: dict, params: dict):
+    for row in table["rows"]:
+        if all(row.get(k) == v for k, v in params.items() if k in row):
+            return row["fps"]
+    return None
+
+
+SWEEPS: dict[str, Sweep] = {s.name: s for s in [
+    Sweep("raymarch-accuracy", "raymarch: relative RMSE against the single-scattering reference vs ms per frame, "
+          "sweeping steps (= shadow_steps) and the baked light-volume size (0 = marched shadow rays)",
+          "raymarch", "accuracy", _raymarch_grid, _raymarch_accuracy),
+    Sweep("pipeline-overhead", "the pipeline's bookkeeping per frame (stage cache checks, timing, the Frame)",
+          "raymarch", "overhead", _overhead_grid, _overhead),
+    Sweep("light-shafts", "papers/001 Table: no scattering / scattering / scattering + interleaved, 800x600",
+          "light_shafts", "paper", paper=("light_shafts",), figure=_row_fps, issue=4),
+    Sweep("rbf-table2", "papers/003 Table 2: grid 15..40, 1 light precomputed and 1/2/4/8 dynamic lights",
+          "rbf_propagation", "paper", paper=("rbf_propagation", "table2"), figure=_row_fps, issue=5),
+    Sweep("rbf-table3", "papers/003 Table 3: 1..27 000 RBFs, dynamic and static medium",
+          "rbf_propagation", "paper", paper=("rbf_propagation", "table3"), figure=_row_fps, issue=5),
+    Sweep("illumination-network", "papers/000: 1024 and 512 particles at 128 directions, one iteration per frame",
+          "illumination_network", "paper", paper=("illumination_network",), figure=_row_fps, issue=6),
+    Sweep("depth-impostors", "papers/004: 8000 particles, blocks 0..1600",
+          "depth_impostors", "paper", paper=("depth_impostors",), figure=_row_fps),
+]}
