@@ -292,3 +292,37 @@ def _union(bmin, bmax, mask):
     if not lo:
         return wp.vec3(1.0), wp.vec3(-1.0)
     return wp.vec3(*np.min(lo, 0).astype(np.float32)), wp.vec3(*np.max(hi, 0).astype(np.float32))
+
+
+@wp.kernel
+def sample_extinction(offset: int, m: Media, lo: wp.vec3, hi: wp.vec3, n: wp.vec3i, out: wp.array(dtype=wp.vec3)):
+    """sigma_t at the cell centres of an n[0] x n[1] x n[2] lattice over [lo, hi], x fastest."""
+    tid = wp.tid() + offset
+    ix = tid % n[0]
+    iy = (tid / n[0]) % n[1]
+    iz = tid / (n[0] * n[1])
+    f = wp.vec3((float(ix) + 0.5) / float(n[0]), (float(iy) + 0.5) / float(n[1]), (float(iz) + 0.5) / float(n[2]))
+    out[tid] = sigma_t_at(m, lo + wp.cw_mul(hi - lo, f), False)
+
+
+def extinction_volume(scene, resolution: int = 64, device: str | None = None):
+    """The scene's extinction sampled at cell centres over the union of its media's bounds.
+
+    Returns (sigma_t, bounds_min, bounds_max): sigma_t of shape (D, H, W, 3) in inverse
+    scene units, [z, y, x] like a grid medium's density, with ``resolution`` cells along
+    the longest side. For looking inside volumes (pyvista) and checking techniques' grids.
+    """
+    from .. import device as dev
+    from ..scene import load_scene
+
+    scene = load_scene(scene)
+    device = dev.pick(device)
+    if not scene.media:
+        raise ValueError(f"{scene.source}: the scene has no media (allowed: a scene with at least one medium)")
+    buffers = MediaBuffers(scene, device)
+    lo, hi = np.asarray(buffers.struct.all_min, np.float64), np.asarray(buffers.struct.all_max, np.float64)
+    extent = hi - lo
+    dims = np.maximum(1, np.round(resolution * extent / extent.max())).astype(int)
+    out = wp.empty(int(np.prod(dims)), dtype=wp.vec3, device=device)
+    dev.launch(sample_extinction, out.shape[0], [buffers.struct, wp.vec3(*lo), wp.vec3(*hi), wp.vec3i(*dims), out], device)
+    return out.numpy().reshape(dims[2], dims[1], dims[0], 3), tuple(lo), tuple(hi)

@@ -1,0 +1,76 @@
+"""The benchmark harness: --quick sweeps run end to end, rows carry what a result needs,
+an interrupted sweep resumes, and reports are generated from the JSON."""
+
+import json
+
+import pytest
+
+from bench.harness import digest, load_rows, write_rows
+from bench.report import pareto_front, paper_section
+from bench.sweeps import SWEEPS
+from warpvol.cli import main
+
+ROW_FIELDS = {"sweep", "technique", "params", "device", "warp", "commit", "median_ms", "spread_ms", "stages",
+              "first_frame_ms", "peak_mem_mb", "paper"}
+
+
+@pytest.fixture
+def out(tmp_path, monkeypatch):
+    monkeypatch.setenv("WARPVOL_CACHE", str(tmp_path / "cache"))
+    return tmp_path / "results"
+
+
+def test_quick_accuracy_sweep_end_to_end_and_resume(out, capsys):
+    assert main(["bench", "raymarch-accuracy", "--quick", "--device", "cpu", "--out", str(out)]) == 0
+    path = out / "raymarch-accuracy" / "cpu-quick.json"
+    rows = load_rows(path)
+    assert len(rows) == len(SWEEPS["raymarch-accuracy"].points(quick=True))
+    for row in rows:
+        assert ROW_FIELDS <= set(row), ROW_FIELDS - set(row)
+        assert row["spread_ms"][0] <= row["median_ms"] <= row["spread_ms"][1]
+        assert row["stages"]["march"]["status"] == "ran"
+        assert 0.0 < row["rel_rmse"] < 1.0
+    # more steps along the camera ray cannot make the marched image worse by more than the noise
+    by = {(r["params"]["steps"], r["params"]["shadow_grid"]): r["rel_rmse"] for r in rows}
+    floor = rows[0]["reference"]["rel_rmse_floor"]
+    assert by[(16, 0)] <= by[(4, 0)] + floor
+    readme = (out / "raymarch-accuracy" / "README.md").read_text()
+    assert "relative RMSE" in readme and (out / "raymarch-accuracy" / "cpu-quick.png").stat().st_size > 1000
+    # run again: every point is there, nothing is measured twice
+    stamp = [r["measured"] + str(r["median_ms"]) for r in rows]
+    assert main(["bench", "raymarch-accuracy", "--quick", "--device", "cpu", "--out", str(out)]) == 0
+    assert [r["measured"] + str(r["median_ms"]) for r in load_rows(path)] == stamp
+
+
+def test_interrupted_sweep_keeps_its_rows_and_measures_the_rest(out):
+    sweep = SWEEPS["pipeline-overhead"]
+    path = out / sweep.name / "cpu-quick.json"
+    assert main(["bench", sweep.name, "--quick", "--device", "cpu", "--out", str(out)]) == 0
+    rows = load_rows(path)
+    write_rows(path, sweep, rows[:1], "test")  # as if stopped after the first row
+    assert main(["bench", sweep.name, "--quick", "--device", "cpu", "--out", str(out)]) == 0
+    again = load_rows(path)
+    assert again[0] == rows[0] and len(again) == len(rows)
+    assert all(r["overhead_us"] > 0 for r in again)
+
+
+def test_sweeps_waiting_for_a_technique_say_so(out, capsys):
+    assert main(["bench", "--list"]) == 0
+    listing = capsys.readouterr().out
+    assert "raymarch-accuracy" in listing and "waits for light_shafts (issue 4)" in listing
+    assert main(["bench", "light-shafts", "--quick", "--out", str(out)]) == 2
+    assert "waits for technique 'light_shafts'" in capsys.readouterr().err
+
+
+def test_paper_report_normalises_both_columns_to_the_first_row(tmp_path):
+    rows = [{"sweep": "t", "params": {"mode": m}, "median_ms": ms, "paper": fps, "device": "d", "peak_mem_mb": 1.0,
+             "stages": {}} for m, ms, fps in (("a", 1.0, 110.0), ("b", 4.0, 42.0))]
+    lines = paper_section(rows, tmp_path / "t.png")
+    assert "| mode=b | 42 | 250.0 | 0.382 | 0.250 |" in lines[3]
+    assert (tmp_path / "t.png").exists()
+
+
+def test_pareto_front_and_digest():
+    assert pareto_front([(1.0, 0.5), (2.0, 0.6), (3.0, 0.1), (0.5, 0.9)]) == [3, 0, 2]
+    assert digest({"a": [1, 2]}) == digest({"a": [1, 2]}) != digest({"a": [1, 3]})
+    json.dumps(SWEEPS["raymarch-accuracy"].points(quick=True))  # points are plain data, for any executor

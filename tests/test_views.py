@@ -1,0 +1,81 @@
+"""pyvista views: off-screen pictures of every built-in scene show something, and the
+array-to-mesh functions keep the arrays' values and layout."""
+
+import numpy as np
+import pytest
+
+import pyvista as pv
+
+import viz
+import warpvol as wv
+from warpvol.scene.procedural import BUILTIN
+
+
+def not_blank(img: np.ndarray) -> float:
+    """Fraction of pixels that differ from the most common colour (the background)."""
+    flat = img.reshape(-1, img.shape[-1])[:, :3]
+    colours, counts = np.unique(flat, axis=0, return_counts=True)
+    return 1.0 - counts.max() / len(flat)
+
+
+@pytest.mark.parametrize("name", list(BUILTIN))
+def test_view_screenshot_of_each_builtin_scene(name, tmp_path):
+    out = tmp_path / f"{name}.png"
+    from warpvol.cli import main
+
+    assert main(["view", name, "--screenshot", str(out)]) == 0
+    png = pv.read(str(out))
+    w, h, _ = png.dimensions
+    img = np.asarray(png.point_data.active_scalars).reshape(h, w, -1)
+    assert w > 100 and h > 100
+    # the frustum, the media and the surfaces cover far more than 2% of the picture
+    assert not_blank(img) > 0.02
+
+
+def test_volume_grid_keeps_the_extinction_layout():
+    scene = wv.load_scene("smoke-grid")
+    grid_medium = scene.media[0]
+    d, h, w = grid_medium.density.shape
+    # sampled at the grid's own cell centres, the extinction volume is the density times the scale
+    sigma, lo, hi = wv.extinction_volume(scene, resolution=w, device="cpu")
+    assert sigma.shape == (d, h, w, 3)
+    np.testing.assert_allclose(sigma[..., 0], grid_medium.density * grid_medium.sigma_t_scale[0], rtol=1e-5, atol=1e-6)
+    mesh = viz.volume_grid(sigma, lo, hi)
+    assert mesh.n_cells == d * h * w
+    # cell (x=3, y=5, z=7) holds sample [7, 5, 3]
+    cell = mesh.find_closest_cell(np.asarray(lo) + (np.array([3, 5, 7]) + 0.5) * (np.subtract(hi, lo) / (w, h, d)))
+    assert mesh.cell_data["sigma_t"][cell] == pytest.approx(sigma[7, 5, 3].mean(), rel=1e-6)
+
+
+def test_per_light_volumes_and_lattices_are_separate_fields():
+    tau = np.random.default_rng(1).random((3, 4, 5, 6)).astype(np.float32)  # 3 lights
+    grid = viz.volume_grid(tau, (0, 0, 0), (1, 1, 1), name="tau")
+    assert [f"tau[{i}]" in grid.cell_data for i in range(3)] == [True] * 3
+    np.testing.assert_array_equal(grid.cell_data["tau[2]"], tau[2].ravel())
+    lattice = viz.lattice_grid(tau[0], (0, 0, 0), (1, 1, 1))
+    assert lattice.n_points == tau[0].size and lattice.bounds[1] == pytest.approx(1.0)
+
+
+def test_network_and_particles_and_slices():
+    rng = np.random.default_rng(2)
+    pos = rng.random((10, 3))
+    visible = np.full((10, 4), -1)
+    visible[:6, 1] = np.arange(1, 7)  # six particles see a neighbour in direction 1
+    alpha = rng.random((10, 4))
+    net = viz.network_mesh(pos, visible, 1, alpha)
+    assert net.n_lines == 6
+    np.testing.assert_allclose(net.cell_data["alpha"], alpha[:6, 1].astype(np.float32))
+    assert viz.network_mesh(pos, visible, 0).n_lines == 0
+    spheres = viz.particles_mesh(pos, 0.05, scalars=rng.random((10, 3)))
+    assert spheres.n_points > 10 * 20
+    slices = viz.impostor_slices(rng.random((5, 8, 8, 4)), (0, 0, 0), (1, 1, 1))
+    assert slices.dimensions == (8, 8, 5)
+
+
+def test_a_volume_plot_is_not_blank():
+    sigma, lo, hi = wv.extinction_volume("rbf-cornell", resolution=24, device="cpu")
+    p = pv.Plotter(off_screen=True, window_size=(200, 150))
+    p.add_volume(viz.volume_grid(sigma, lo, hi), cmap="bone")
+    img = p.screenshot(return_img=True)
+    p.close()
+    assert not_blank(img) > 0.02

@@ -1,0 +1,26 @@
+"""pyvista views of warpvol scenes and of techniques' intermediate arrays.
+
+    python -m warpvol view SCENE [--screenshot out.png]
+
+Functions that turn arrays into pyvista meshes (``volume_grid``, ``lattice_grid``,
+``particles_mesh``, ``network_mesh``, ``impostor_slices``, ``light_glyphs``,
+``camera_frustum``) and one that assembles a whole scene (``scene_plotter``). Techniques
+add their own views here as they land. Uses only warpvol's public API.
+"""
+
+from .views import (
+    camera_frustum,
+    impostor_slices,
+    lattice_grid,
+    light_glyphs,
+    network_mesh,
+    particles_mesh,
+    scene_plotter,
+    surfaces_mesh,
+    volume_grid,
+)
+
+__all__ = [
+    "camera_frustum", "impostor_slices", "lattice_grid", "light_glyphs", "network_mesh", "particles_mesh",
+    "scene_plotter", "surfaces_mesh", "volume_grid",
+]

@@ -1,0 +1,203 @@
+"""Arrays to pyvista meshes, and a scene to a plotter.
+
+Volumes follow warpvol's layout: arrays indexed [z, y, x] (x fastest) over an axis-aligned
+box. ``volume_grid`` takes cell-centred samples (a grid medium, an extinction volume, an
+optical-depth volume per light), ``lattice_grid`` node-centred ones (a baked light volume).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pyvista as pv
+
+import warpvol as wv
+
+
+def _channels(values: np.ndarray, spatial: int = 3) -> list[np.ndarray]:
+    """Split (D, H, W), (D, H, W, C) or (C, D, H, W)-with-C-first arrays into scalar fields."""
+    values = np.asarray(values)
+    if values.ndim == spatial:
+        return [values]
+    if values.ndim == spatial + 1 and values.shape[-1] in (1, 3) and values.shape[0] not in (1,):
+        return [values[..., c] for c in range(values.shape[-1])]
+    return [values[c] for c in range(values.shape[0])]
+
+
+def volume_grid(values, bounds_min, bounds_max, name: str = "sigma_t") -> pv.ImageData:
+    """Cell-centred samples over [bounds_min, bounds_max] as an ImageData with cell data.
+
+    ``values``: (D, H, W) scalars, (D, H, W, 3) RGB (stored per channel as ``name[c]`` and
+    their mean as ``name``), or (L, D, H, W), one field per light (``name[l]``).
+    """
+    fields = _channels(values)
+    d, h, w = fields[0].shape
+    lo, hi = np.asarray(bounds_min, float), np.asarray(bounds_max, float)
+    grid = pv.ImageData(dimensions=(w + 1, h + 1, d + 1), spacing=tuple((hi - lo) / (w, h, d)), origin=tuple(lo))
+    for i, f in enumerate(fields):
+        if len(fields) > 1:
+            grid.cell_data[f"{name}[{i}]"] = np.ascontiguousarray(f, np.float32).ravel()
+    grid.cell_data[name] = np.mean([np.asarray(f, np.float32) for f in fields], axis=0).ravel()
+    grid.cell_data.active_scalars_name = name
+    return grid
+
+
+def lattice_grid(values, bounds_min, bounds_max, name: str = "transmittance") -> pv.ImageData:
+    """Node-centred samples (nodes on the box's corners) as an ImageData with point data."""
+    fields = _channels(values)
+    d, h, w = fields[0].shape
+    lo, hi = np.asarray(bounds_min, float), np.asarray(bounds_max, float)
+    spacing = tuple((hi - lo) / np.maximum(np.array((w, h, d)) - 1, 1))
+    grid = pv.ImageData(dimensions=(w, h, d), spacing=spacing, origin=tuple(lo))
+    for i, f in enumerate(fields):
+        if len(fields) > 1:
+            grid.point_data[f"{name}[{i}]"] = np.ascontiguousarray(f, np.float32).ravel()
+    grid.point_data[name] = np.mean([np.asarray(f, np.float32) for f in fields], axis=0).ravel()
+    grid.point_data.active_scalars_name = name
+    return grid
+
+
+def particles_mesh(positions, radius, scalars=None, name: str = "radiance", resolution: int = 12) -> pv.PolyData:
+    """One sphere per particle; ``scalars`` (N,) or (N, 3) colour them (RGB shown as its mean)."""
+    pts = pv.PolyData(np.asarray(positions, np.float32).reshape(-1, 3))
+    if scalars is not None:
+        s = np.asarray(scalars, np.float32)
+        pts.point_data[name] = s.mean(axis=1) if s.ndim == 2 else s
+    r = float(np.mean(radius))
+    return pts.glyph(geom=pv.Sphere(radius=r, theta_resolution=resolution, phi_resolution=resolution),
+                     scale=False, orient=False)
+
+
+def network_mesh(positions, visible, direction: int, alpha=None) -> pv.PolyData:
+    """Edges of a visibility network for one direction: p -> visible[p, direction].
+
+    ``visible``: (N, D) particle indices, -1 where nothing is seen (light from outside);
+    ``alpha``: optional (N, D) opacities, kept as cell data on the edges.
+    """
+    positions = np.asarray(positions, np.float32)
+    target = np.asarray(visible)[:, direction]
+    src = np.nonzero(target >= 0)[0]
+    lines = np.column_stack([np.full(len(src), 2), src, target[src]]).ravel()
+    mesh = pv.PolyData(positions, lines=lines if len(src) else None)
+    if alpha is not None and len(src):
+        mesh.cell_data["alpha"] = np.asarray(alpha, np.float32)[src, direction]
+    return mesh
+
+
+def impostor_slices(slices, bounds_min, bounds_max, name: str = "rgba") -> pv.ImageData:
+    """A stack of K RGBA impostor slices (K, H, W, 4) as a node-centred volume with RGBA point data."""
+    s = np.asarray(slices, np.float32)
+    k, h, w, _ = s.shape
+    lo, hi = np.asarray(bounds_min, float), np.asarray(bounds_max, float)
+    spacing = tuple((hi - lo) / np.maximum(np.array((w, h, k)) - 1, 1))
+    grid = pv.ImageData(dimensions=(w, h, k), spacing=spacing, origin=tuple(lo))
+    grid.point_data[name] = (np.clip(s, 0, 1) * 255).astype(np.uint8).reshape(-1, 4)
+    grid.point_data["alpha"] = s[..., 3].ravel()
+    return grid
+
+
+def surfaces_mesh(scene) -> pv.PolyData | None:
+    """The scene's surfaces as one triangle mesh with per-face diffuse colour (``diffuse``)."""
+    verts, faces, colours, base = [], [], [], 0
+    for s in scene.surfaces:
+        verts.append(s.vertices)
+        faces.append(np.column_stack([np.full(len(s.faces), 3), s.faces + base]))
+        colours.append(s.diffuse)
+        base += len(s.vertices)
+    if not verts:
+        return None
+    mesh = pv.PolyData(np.concatenate(verts).astype(np.float32), np.concatenate(faces).ravel())
+    mesh.cell_data["diffuse"] = (np.clip(np.concatenate(colours), 0, 1) * 255).astype(np.uint8)
+    return mesh
+
+
+def light_glyphs(scene, size: float = 0.15) -> list[tuple[pv.PolyData, tuple]]:
+    """(mesh, colour) per light: a sphere for a point light, a cone along a spot light's axis,
+    an arrow along a directional light's travel direction, coloured by the light's hue."""
+    out = []
+    for light in scene.lights:
+        rgb = np.asarray(light.strength, float)
+        colour = tuple(rgb / rgb.max()) if rgb.max() > 0 else (1.0, 1.0, 1.0)
+        if light.type == "point":
+            mesh = pv.Sphere(radius=size, center=light.position)
+        elif light.type == "spot":
+            height = 3 * size
+            axis = np.asarray(light.direction, float)
+            mesh = pv.Cone(center=np.asarray(light.position) + 0.5 * height * axis, direction=-axis, height=height,
+                           radius=height * math.tan(math.radians(light.outer_angle)))
+        else:
+            d = np.asarray(light.direction, float)
+            start = np.asarray(scene.camera.target, float) - 8 * size * d
+            mesh = pv.Arrow(start=start, direction=d, scale=6 * size)
+        out.append((mesh, colour))
+    return out
+
+
+def camera_frustum(camera, depth: float | None = None) -> pv.PolyData:
+    """The camera's view pyramid, from its origin out to ``depth`` (default: to the target)."""
+    o = np.asarray(camera.origin, float)
+    fwd = np.asarray(camera.target, float) - o
+    depth = depth or float(np.linalg.norm(fwd))
+    fwd /= np.linalg.norm(fwd)
+    right = np.cross(fwd, camera.up)
+    right /= np.linalg.norm(right)
+    up = np.cross(right, fwd)
+    ty = math.tan(math.radians(camera.fov_y) / 2)
+    tx = ty * camera.width / camera.height
+    corners = [o + depth * (fwd + sx * tx * right + sy * ty * up) for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
+    pts = np.vstack([o, *corners])
+    lines = [2, 0, 1, 2, 0, 2, 2, 0, 3, 2, 0, 4, 2, 1, 2, 2, 2, 3, 2, 3, 4, 2, 4, 1]
+    return pv.PolyData(pts, lines=np.array(lines))
+
+
+def _medium_actor(plotter: pv.Plotter, scene, medium, resolution: int):
+    if medium.type == "homogeneous":
+        if medium.shape == "box":
+            mesh = pv.Box(bounds=np.ravel(np.column_stack([np.subtract(medium.center, np.multiply(medium.size, 0.5)),
+                                                           np.add(medium.center, np.multiply(medium.size, 0.5))])))
+        else:
+            mesh = pv.Sphere(radius=medium.radius, center=medium.center)
+        plotter.add_mesh(mesh, color="lightsteelblue", opacity=0.15, label="homogeneous medium")
+    elif medium.type == "particles":
+        plotter.add_mesh(particles_mesh(medium.positions, medium.radius, resolution=8), color="white", opacity=0.6,
+                         label=f"{len(medium.positions)} particles")
+    else:  # grid or rbf: sample its extinction and show it as a volume
+        one = wv.Scene(scene.name, scene.camera, media=[medium])
+        sigma, lo, hi = wv.extinction_volume(one, resolution)
+        grid = volume_grid(sigma, lo, hi)
+        plotter.add_volume(grid, scalars="sigma_t", cmap="bone", opacity="sigmoid", show_scalar_bar=False)
+
+
+def scene_plotter(scene, off_screen: bool = False, window_size=(960, 720), resolution: int = 48) -> pv.Plotter:
+    """A plotter showing ``scene`` (a Scene, path, built-in name or dict): media as volumes
+    (grid and RBF extinction sampled at ``resolution`` cells), particles as spheres,
+    surfaces with their diffuse colour, lights as glyphs, and the camera's frustum."""
+    scene = wv.load_scene(scene)
+    plotter = pv.Plotter(off_screen=off_screen, window_size=window_size)
+    plotter.set_background("black" if not any(scene.background) else tuple(min(1.0, c) for c in scene.background))
+    surfaces = surfaces_mesh(scene)
+    if surfaces is not None:
+        plotter.add_mesh(surfaces, scalars="diffuse", rgb=True, opacity=0.6)
+    for medium in scene.media:
+        _medium_actor(plotter, scene, medium, resolution)
+    for mesh, colour in light_glyphs(scene, size=0.05 * _extent(scene)):
+        plotter.add_mesh(mesh, color=colour)
+    plotter.add_mesh(camera_frustum(scene.camera), color="yellow", line_width=2)
+    plotter.add_text(scene.name, font_size=10)
+    # look from behind the scene camera's right shoulder, then fit everything in view
+    c = scene.camera
+    fwd = np.subtract(c.target, c.origin) / np.linalg.norm(np.subtract(c.target, c.origin))
+    right = np.cross(fwd, c.up) / np.linalg.norm(np.cross(fwd, c.up))
+    eye_dir = -fwd + 0.8 * right + 0.6 * np.cross(right, fwd)
+    plotter.camera_position = [tuple(np.asarray(c.target) + eye_dir), c.target, c.up]
+    plotter.reset_camera()
+    plotter.camera.zoom(1.5)
+    return plotter
+
+
+def _extent(scene) -> float:
+    pts = [np.asarray(scene.camera.origin), np.asarray(scene.camera.target)]
+    for s in scene.surfaces:
+        pts += [s.vertices.min(0), s.vertices.max(0)]
+    return float(np.ptp(np.vstack(pts), axis=0).max()) or 1.0
