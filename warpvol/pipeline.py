@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import time
 from collections import defaultdict
-from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Callable, NamedTuple
 
@@ -216,12 +215,3 @@ class Pipeline:
             keys[stage.name] = key
             runs[stage.name] += 1
         return out
-
-
-@contextmanager
-def timed(timings: dict, stage: str, device: str):
-    """Add the device-synchronised wall time of the block to ``timings[stage]`` (seconds)."""
-    t0 = time.perf_counter()
-    yield
-    wp.synchronize_device(device)
-    timings[stage] = timings.get(stage, 0.0) + time.perf_counter() - t0

@@ -108,3 +108,42 @@ def cornell_box(center=(0.0, 0.0, 0.0), size=(2.0, 2.0, 2.0), diffuse=(0.7, 0.7,
         vs.append(v)
         cs.append(np.tile(np.asarray(colour, np.float64), (len(f), 1)))
     return np.concatenate(vs), np.concatenate(fs), np.concatenate(cs)
+
+
+def cylinder(base, radius: float, height: float, segments: int = 32, stacks: int = 1):
+    """An open vertical cylinder (no caps) standing on ``base``: segments x stacks x 2 triangles."""
+    phi = np.linspace(0.0, 2.0 * np.pi, segments, endpoint=False)
+    y = np.linspace(0.0, height, stacks + 1)
+    ring = np.column_stack([radius * np.cos(phi), np.zeros(segments), radius * np.sin(phi)])
+    v = np.concatenate([ring + [0.0, h, 0.0] for h in y]) + np.asarray(base, np.float64)
+    i, k = np.meshgrid(np.arange(segments), np.arange(stacks), indexing="ij")
+    a = (k * segments + i).ravel()
+    b = (k * segments + (i + 1) % segments).ravel()
+    f = np.concatenate([np.column_stack([a, a + segments, b]), np.column_stack([b, a + segments, b + segments])])
+    return v, f.astype(np.int32)
+
+
+def colonnade(center=(0.0, 0.0, 0.0), columns: int = 8, segments: int = 64, stacks: int = 64,
+              diffuse=(0.7, 0.7, 0.7)):
+    """A temple front that throws light shafts (papers/001's kind of scene): a floor, a row of
+    ``columns`` fluted columns (cylinders of segments x stacks quads) under a lintel, and a back
+    wall with a window grating of bars. With the defaults: 65 660 triangles.
+
+    Spans x in [-4, 4], y in [0, 4], z in [-3, 1] around ``center``. Returns (vertices, faces,
+    per-face diffuse (F, 3)).
+    """
+    c = np.asarray(center, np.float64)
+    parts = [plane(c + [0, 0, -1], [0, 1, 0], (12.0, 10.0)),  # floor
+             box(c + [0, 3.6, 0], [8.4, 0.4, 1.0]),  # lintel over the columns
+             quad(c + [-6, 0, -3], np.array([12.0, 0, 0]), np.array([0, 5.0, 0]))]  # back wall
+    for x in np.linspace(-3.5, 3.5, columns):
+        parts.append(cylinder(c + [x, 0, 0], 0.22, 3.4, segments, stacks))
+    for k in range(9):  # window grating: vertical bars in front of the back wall's window
+        parts.append(box(c + [-1.2 + 0.3 * k, 2.6, -2.6], [0.06, 1.6, 0.06]))
+    vs, fs, base = [], [], 0
+    for v, f in parts:
+        vs.append(v)
+        fs.append(f + base)
+        base += len(v)
+    f = np.concatenate(fs)
+    return np.concatenate(vs), f, np.tile(np.asarray(diffuse, np.float64), (len(f), 1))

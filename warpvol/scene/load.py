@@ -313,9 +313,14 @@ def _surface(data, where, source, base_dir) -> Surface:
         v, f = shapes.plane(t.vec3("center", (0.0, 0.0, 0.0)), normal, size)
     elif kind == "sphere":
         v, f = shapes.sphere(t.vec3("center", (0.0, 0.0, 0.0)), t.number("radius", lo=0.0, lo_open=True))
+    elif name == "colonnade":
+        v, f, colours = shapes.colonnade(t.vec3("center", (0.0, 0.0, 0.0)),
+                                         t.number("columns", 8, 1, 64, integer=True),
+                                         t.number("segments", 64, 3, 1024, integer=True),
+                                         t.number("stacks", 64, 1, 1024, integer=True), diffuse)
     else:
         if name != "cornell_box":
-            t.fail(t.key("name"), f"unknown procedural surface {name!r}", "cornell_box")
+            t.fail(t.key("name"), f"unknown procedural surface {name!r}", "cornell_box | colonnade")
         v, f, colours = shapes.cornell_box(t.vec3("center", (0.0, 0.0, 0.0)),
                                            t.vec3("size", (2.0, 2.0, 2.0), lo=0.0, lo_open=True), diffuse)
     t.finish()
