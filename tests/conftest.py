@@ -36,3 +36,18 @@ def assert_mean_within_noise(image, stderr, expected, k=5.0):
     se_mean = np.sqrt(np.sum(stderr**2)) / n
     diff = abs(image.mean() - np.mean(expected))
     assert diff <= k * se_mean, f"mean {image.mean():.6g} vs expected {np.mean(expected):.6g}: {diff:.3g} > {k} x {se_mean:.3g}"
+
+
+def pixel_rays(cam):
+    """Unit directions through pixel centres, as the kernels compute them (float64)."""
+    o = np.asarray(cam["origin"], float)
+    f = np.asarray(cam["target"], float) - o
+    f /= np.linalg.norm(f)
+    r = np.cross(f, [0, 1, 0])
+    r /= np.linalg.norm(r)
+    u = np.cross(r, f)
+    th = np.tan(np.radians(cam["fov_y"]) / 2)
+    px, py = np.meshgrid(np.arange(cam["width"]) + 0.5, np.arange(cam["height"]) + 0.5)
+    sx, sy = 2 * px / cam["width"] - 1, 1 - 2 * py / cam["height"]
+    d = f + sx[..., None] * r * th * cam["width"] / cam["height"] + sy[..., None] * u * th
+    return o, d / np.linalg.norm(d, axis=-1, keepdims=True)

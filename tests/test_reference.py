@@ -11,28 +11,13 @@ import pytest
 import warpvol as wv
 from warpvol.physics.airlight import airlight_exact
 
-from .conftest import assert_mean_within_noise, two_seed_render
+from .conftest import assert_mean_within_noise, pixel_rays, two_seed_render
 
 W, H = 24, 18
 
 
 def camera(origin=(0.0, 0.0, 4.0), target=(0.0, 0.0, 0.0), fov=40.0, w=W, h=H):
     return {"origin": list(origin), "target": list(target), "fov_y": fov, "width": w, "height": h}
-
-
-def pixel_rays(cam):
-    """Unit directions through pixel centres, as the kernels compute them (float64)."""
-    o = np.asarray(cam["origin"], float)
-    f = np.asarray(cam["target"], float) - o
-    f /= np.linalg.norm(f)
-    r = np.cross(f, [0, 1, 0])
-    r /= np.linalg.norm(r)
-    u = np.cross(r, f)
-    th = np.tan(np.radians(cam["fov_y"]) / 2)
-    px, py = np.meshgrid(np.arange(cam["width"]) + 0.5, np.arange(cam["height"]) + 0.5)
-    sx, sy = 2 * px / cam["width"] - 1, 1 - 2 * py / cam["height"]
-    d = f + sx[..., None] * r * th * cam["width"] / cam["height"] + sy[..., None] * u * th
-    return o, d / np.linalg.norm(d, axis=-1, keepdims=True)
 
 
 def box_chord(o, d, lo, hi):
