@@ -144,7 +144,7 @@ def test_grazing_rays():
 def test_no_occluders_skips_the_shadow_and_depth_passes():
     frame = shafts(pillar_scene(surfaces=False), steps=16)
     status = {n: s.status for n, s in frame.stages.items()}
-    assert status["shadow_maps"] == status["depth"] == status["surfaces"] == "skipped"
+    assert status["shadow_maps"] == status["surface"] == status["surfaces"] == "skipped"
     assert np.isfinite(frame.image).all() and frame.image.mean() > 0
 
 
@@ -160,7 +160,8 @@ def test_moving_the_camera_keeps_the_shadow_maps():
     r.render()
     r.update(camera=dict(pillar_scene()["camera"], origin=[0.5, 1.0, 4.0]))
     status = {n: s.status for n, s in r.render().stages.items()}
-    assert status["shadow_maps"] == "cached" and status["depth"] == "ran" and status["march"] == "ran"
+    assert status["shadow_maps"] == "cached" and status["surface"] == "ran" and status["march"] == "ran"
     r.update(lights=[{"type": "point", "position": [0.0, 1.4, -1.5], "intensity": 6.0}])
     status = {n: s.status for n, s in r.render().stages.items()}
-    assert status["shadow_maps"] == "ran" and status["depth"] == "cached"
+    assert status["shadow_maps"] == status["surface"] == "ran"  # the surfaces' lighting changed
+    assert status["surfaces"] == status["medium"] == "cached"  # not the BVH nor the medium

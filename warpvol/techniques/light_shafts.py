@@ -13,8 +13,9 @@ with v(x) the shadow-map visibility of x from the light. Passes (stages):
 * ``shadow_maps``: one map per light, ray cast through a ``wp.Mesh`` (cube map for point
   lights, perspective for spot, orthographic for directional; ``shadow_map_res``,
   ``depth_bias``). Skipped when the scene has no surfaces.
-* ``depth``: the visible surface per pixel (distance, normal, face). Skipped without surfaces.
-* ``march``: the surface term and the in-scattering sum. With interleaved sampling
+* ``surface``: the visible surface per pixel and the radiance it reflects (the paper's step
+  1, the boundary condition L0). Skipped without surfaces.
+* ``march``: L0 attenuated to the camera, and the in-scattering sum. With interleaved sampling
   (section 4.1, ``block`` = M > 1) the N = ``steps`` samples of a ray are dealt out over
   M x M pixels: pixel (i, j) takes samples n = k, k + M^2, ... with k = i mod M + M (j mod M).
 * ``block_rows``, ``block_cols``: the separable M x M box sum that gathers the N samples
@@ -95,17 +96,6 @@ def cast_shadow_map(offset: int, s: Surfaces, sm: ShadowMap, depth: wp.array(dty
     depth[sm.offset + tid] = wp.where(q.result, q.t, INF)
 
 
-@wp.kernel
-def cast_view_rays(offset: int, cam: PinholeCamera, s: Surfaces, t_hit: wp.array(dtype=float),
-                   face: wp.array(dtype=int), normal: wp.array(dtype=wp.vec3)):
-    tid = wp.tid() + offset
-    d = camera_ray(cam, float(tid % cam.width) + 0.5, float(tid / cam.width) + 0.5)
-    hit, t, n, f = surface_hit(s, cam.origin, d, INF)
-    t_hit[tid] = t
-    face[tid] = f
-    normal[tid] = wp.where(wp.dot(n, d) < 0.0, n, -n)
-
-
 @wp.func
 def light_arriving(m: Media, lights: wp.array(dtype=Light), maps: wp.array(dtype=ShadowMap),
                    depth: wp.array(dtype=float), l: int, x: wp.vec3, shadow_steps: int):
@@ -121,30 +111,43 @@ def light_arriving(m: Media, lights: wp.array(dtype=Light), maps: wp.array(dtype
 
 
 @wp.kernel
-def march_shafts(offset: int, cam: PinholeCamera, m: Media, s: Surfaces, lights: wp.array(dtype=Light),
+def shade_visible_surface(offset: int, cam: PinholeCamera, m: Media, s: Surfaces, lights: wp.array(dtype=Light),
+                          maps: wp.array(dtype=ShadowMap), depth: wp.array(dtype=float), shadow_steps: int,
+                          t_hit: wp.array(dtype=float), radiance: wp.array(dtype=wp.vec3)):
+    """The paper's step 1: the visible surface per pixel and the radiance it reflects toward the
+    camera (direct light through the shadow maps and the media), before the view ray's attenuation."""
+    tid = wp.tid() + offset
+    d = camera_ray(cam, float(tid % cam.width) + 0.5, float(tid / cam.width) + 0.5)
+    hit, t, n, f = surface_hit(s, cam.origin, d, INF)
+    L0 = wp.vec3(0.0)
+    if hit:
+        n = wp.where(wp.dot(n, d) < 0.0, n, -n)
+        p = cam.origin + t * d + RAY_EPS * n
+        for l in range(lights.shape[0]):
+            wi, e = light_arriving(m, lights, maps, depth, l, p, shadow_steps)
+            cos_l = wp.dot(n, wi)
+            if cos_l > 0.0:
+                L0 += cos_l * wp.cw_mul(brdf_eval(s.material[f], n, -d, wi), e)
+    t_hit[tid] = t
+    radiance[tid] = L0
+
+
+@wp.kernel
+def march_shafts(offset: int, cam: PinholeCamera, m: Media, lights: wp.array(dtype=Light),
                  maps: wp.array(dtype=ShadowMap), depth: wp.array(dtype=float), t_hit: wp.array(dtype=float),
-                 face: wp.array(dtype=int), normal: wp.array(dtype=wp.vec3), background: wp.vec3,
-                 st: ShaftSettings, surface_out: wp.array(dtype=wp.vec3), partial_out: wp.array(dtype=wp.vec3)):
+                 radiance: wp.array(dtype=wp.vec3), background: wp.vec3, st: ShaftSettings,
+                 surface_out: wp.array(dtype=wp.vec3), partial_out: wp.array(dtype=wp.vec3)):
     tid = wp.tid() + offset
     px = tid % cam.width
     py = tid / cam.width
     o = cam.origin
     d = camera_ray(cam, float(px) + 0.5, float(py) + 0.5)
     ts = INF
+    L0 = background
     if st.has_depth == 1:
         ts = t_hit[tid]
-
-    # boundary condition: the visible surface lit through the shadow maps, or the background
-    L0 = background
-    if ts < INF:
-        p = o + ts * d
-        n = normal[tid]
-        L0 = wp.vec3(0.0)
-        for l in range(lights.shape[0]):
-            wi, e = light_arriving(m, lights, maps, depth, l, p + RAY_EPS * n, st.shadow_steps)
-            cos_l = wp.dot(n, wi)
-            if cos_l > 0.0:
-                L0 += cos_l * wp.cw_mul(brdf_eval(s.material[face[tid]], n, -d, wi), e)
+        if ts < INF:
+            L0 = radiance[tid]
 
     a, b = ray_box(o, d, m.all_min, m.all_max)
     ta = wp.max(a, 0.0)
@@ -268,7 +271,7 @@ class LightShafts(Technique):
         self.uploads = SceneUploads(self)
         self.maps = None
         self.depth = wp.full(1, INF, dtype=float, device=device)
-        self.t_hit = self.face = self.normal = None
+        self.t_hit = self.radiance = None
         self.surface = self.partial = self.rows = self.image = None
 
     def effective_block(self) -> int:
@@ -283,10 +286,11 @@ class LightShafts(Technique):
         return self.uploads.stages() + [
             Stage("shadow_maps", self._shadow_maps, reads=("lights",), settings=("shadow_map_res", "depth_bias"),
                   after=("surfaces", "lights"), needed=occluders and bool(scene.lights)),
-            Stage("depth", self._depth, reads=("camera",), after=("surfaces",), needed=occluders),
+            Stage("surface", self._surface, reads=("camera",), settings=("shadow_steps",),
+                  after=("medium", "surfaces", "lights", "shadow_maps"), needed=occluders),
             Stage("march", self._march, reads=("camera", "background"),
                   settings=("steps", "block", "jitter", "scattering", "shadow_steps", "seed", "spacing"),
-                  after=("medium", "surfaces", "lights", "shadow_maps", "depth")),
+                  after=("medium", "lights", "shadow_maps", "surface")),
             Stage("block_rows", self._block_rows, settings=("block",), after=("march",), needed=interleaved),
             Stage("block_cols", self._block_cols, settings=("block",), after=("block_rows",), needed=interleaved),
         ]
@@ -309,27 +313,30 @@ class LightShafts(Technique):
             dev.launch(cast_shadow_map, texels(sm.kind, sm.res), [self.uploads.surfaces, sm, self.depth], self.device)
         self.maps = wp.array(structs, dtype=ShadowMap, device=self.device)
 
-    def _depth(self):
-        cam = self.scene.camera
+    def _no_shadow_maps(self):
+        if not (self.scene.surfaces and self.scene.lights):  # no shadow pass: every map says "lit"
+            self.maps = wp.array(self._map_structs(occluders=False) or [ShadowMap()], dtype=ShadowMap,
+                                 device=self.device)
+
+    def _surface(self):
+        cam, u = self.scene.camera, self.uploads
         npix = cam.width * cam.height
+        self._no_shadow_maps()
         self.t_hit = wp.empty(npix, dtype=float, device=self.device)
-        self.face = wp.empty(npix, dtype=int, device=self.device)
-        self.normal = wp.empty(npix, dtype=wp.vec3, device=self.device)
-        dev.launch(cast_view_rays, npix, [pinhole(cam), self.uploads.surfaces, self.t_hit, self.face, self.normal],
-                   self.device)
+        self.radiance = wp.empty(npix, dtype=wp.vec3, device=self.device)
+        dev.launch(shade_visible_surface, npix, [pinhole(cam), u.media.struct, u.surfaces, u.lights, self.maps,
+                                                 self.depth, self.settings["shadow_steps"], self.t_hit,
+                                                 self.radiance], self.device)
 
     def _march(self):
         scene, u, cfg = self.scene, self.uploads, self.settings
         cam = scene.camera
         npix = cam.width * cam.height
         has_depth = bool(scene.surfaces)
-        if not (has_depth and scene.lights):  # no shadow pass: every map says "lit"
-            self.maps = wp.array(self._map_structs(occluders=False) or [ShadowMap()], dtype=ShadowMap,
-                                 device=self.device)
+        self._no_shadow_maps()
         if not has_depth:
             self.t_hit = self.depth
-            self.face = wp.zeros(1, dtype=int, device=self.device)
-            self.normal = wp.zeros(1, dtype=wp.vec3, device=self.device)
+            self.radiance = wp.zeros(1, dtype=wp.vec3, device=self.device)
         st = ShaftSettings()
         st.steps, st.block, st.jitter = cfg["steps"], self.effective_block(), cfg["jitter"]
         st.scattering, st.shadow_steps, st.seed = cfg["scattering"], cfg["shadow_steps"], cfg["seed"]
@@ -337,8 +344,8 @@ class LightShafts(Technique):
         st.has_depth = int(has_depth)
         self.surface = wp.empty(npix, dtype=wp.vec3, device=self.device)
         self.partial = wp.empty(npix, dtype=wp.vec3, device=self.device)
-        dev.launch(march_shafts, npix, [pinhole(cam), u.media.struct, u.surfaces, u.lights, self.maps, self.depth,
-                                        self.t_hit, self.face, self.normal, wp.vec3(*scene.background), st,
+        dev.launch(march_shafts, npix, [pinhole(cam), u.media.struct, u.lights, self.maps, self.depth,
+                                        self.t_hit, self.radiance, wp.vec3(*scene.background), st,
                                         self.surface, self.partial], self.device)
         if st.block == 1 or not cfg["scattering"] or not scene.media:
             self.image = wp.empty(npix, dtype=wp.vec3, device=self.device)
