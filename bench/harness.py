@@ -189,6 +189,19 @@ def reference_image(scene, device: str, **settings) -> tuple[np.ndarray, float]:
     return image.astype(np.float32), floor
 
 
+def baseline_image(scene, technique: str, device: str, **settings) -> np.ndarray:
+    """A deterministic technique's image (e.g. a finely stepped raymarch), cached on disk like
+    ``reference_image``."""
+    scene = wv.load_scene(scene)
+    path = CACHE / technique / f"{scene.name}-{digest([scene, settings])}.npy"
+    if path.exists():
+        return np.load(path)
+    image = wv.render(scene, technique=technique, device=device, progress=True, **settings).image
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.save(path, image)
+    return image
+
+
 def row_key(params: dict) -> str:
     return json.dumps(params, sort_keys=True)
 

@@ -13,7 +13,7 @@ from typing import Callable
 
 import warpvol as wv
 
-from .harness import reference_image, time_frames
+from .harness import baseline_image, reference_image, time_frames
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -118,6 +118,72 @@ def _overhead(params: dict, device: str, quick: bool) -> dict:
     return row
 
 
+# --- light shafts (papers/001) ----------------------------------------------------------------
+
+def _shafts_scene(quick: bool, width=800, height=600):
+    """colonnade-shafts: 65 660 triangles, one point light in homogeneous fog."""
+    if quick:
+        width, height = 80, 60
+    return wv.load_scene("colonnade-shafts", [f"camera.width={width}", f"camera.height={height}"])
+
+
+SHAFT_MODES = {"no_scattering": dict(scattering=0, block=1), "scattering": dict(block=1),
+               "scattering_interleaved": dict(block=4)}
+
+
+def _shafts_table_grid(quick: bool) -> list[dict]:
+    return [{"mode": m} for m in SHAFT_MODES]
+
+
+def _shafts_frame(params: dict, device: str, quick: bool) -> dict:
+    """A frame with a moving camera and light over static geometry: shadow maps, the surface
+    pass, the march and the block sums run; the BVH and the medium stay cached."""
+    settings = {"steps": 64, **SHAFT_MODES.get(params.get("mode"), {}),
+                **{k: v for k, v in params.items() if k != "mode"}}
+    r = wv.Renderer(_shafts_scene(quick), technique="light_shafts", device=device, **settings)
+    row = time_frames(r, repeats=2 if quick else 5, invalidate=("camera", "lights"))
+    row["settings"] = settings
+    return row
+
+
+def _shafts_sweep_grid(quick: bool) -> list[dict]:
+    if quick:
+        return [{"steps": 16, "block": 1}, {"steps": 16, "block": 4}]
+    nm = [{"steps": n, "block": m, "shadow_map_res": 256} for n in (16, 32, 64, 128, 256) for m in (1, 2, 4, 8)]
+    return nm + [{"steps": 64, "block": 4, "shadow_map_res": r} for r in (64, 128, 512, 1024)]
+
+
+ACCURACY_SIZE = (320, 240)
+
+
+def _shafts_accuracy_grid(quick: bool) -> list[dict]:
+    if quick:
+        return [{"steps": 16, "block": 1, "shadow_map_res": 64}, {"steps": 16, "block": 4, "shadow_map_res": 64}]
+    nm = [{"steps": n, "block": m, "shadow_map_res": 256} for m in (1, 2, 4) for n in (16, 32, 64, 128, 256)]
+    return nm + [{"steps": 64, "block": 4, "shadow_map_res": r} for r in (64, 128, 512, 1024)]
+
+
+def _shafts_accuracy(params: dict, device: str, quick: bool) -> dict:
+    scene = _shafts_scene(quick, *ACCURACY_SIZE)
+    spp = 16 if quick else 1024
+    ref, floor = reference_image(scene, device, spp=spp, max_bounces=1, pixel_area=0)
+    base = baseline_image(scene, "raymarch", device, steps=64 if quick else 1024)
+    r = wv.Renderer(scene, technique="light_shafts", device=device, **params)
+    row = time_frames(r, repeats=2 if quick else 3, invalidate=("camera", "lights"))
+    image = row["frame"].image
+    row["rel_rmse"] = wv.relative_rmse(image, ref)
+    row["rel_rmse_corrected"] = max(row["rel_rmse"] ** 2 - floor**2, 0.0) ** 0.5
+    row["rel_rmse_raymarch"] = wv.relative_rmse(image, base)
+    row["reference"] = {"spp": 2 * spp, "max_bounces": 1, "pixel_area": 0, "rel_rmse_floor": floor,
+                        "raymarch_steps": 64 if quick else 1024}
+    row["scene"] = f"colonnade-shafts {scene.camera.width}x{scene.camera.height}"
+    return row
+
+
+def _shafts_paper_fps(table: dict, params: dict):
+    return next((r["fps"] for r in table["rows"] if r["mode"] == params.get("mode")), None)
+
+
 # --- the papers' tables: runnable once their techniques land ------------------------------
 
 def _row_fps(table: dict, params: dict):
@@ -133,8 +199,18 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
           "raymarch", "accuracy", _raymarch_grid, _raymarch_accuracy),
     Sweep("pipeline-overhead", "the pipeline's bookkeeping per frame (stage cache checks, timing, the Frame)",
           "raymarch", "overhead", _overhead_grid, _overhead),
-    Sweep("light-shafts", "papers/001 Table: no scattering / scattering / scattering + interleaved, 800x600",
-          "light_shafts", "paper", paper=("light_shafts",), figure=_row_fps, issue=4),
+    Sweep("light-shafts", "papers/001 section 5: no scattering / scattering / scattering + interleaved (N = 64, "
+          "M = 4), colonnade-shafts 800x600, camera and light moving (shadow maps, surface pass, march, block sums "
+          "every frame; the BVH of the static geometry cached)",
+          "light_shafts", "paper", _shafts_table_grid, _shafts_frame, paper=("light_shafts",),
+          figure=_shafts_paper_fps, issue=4),
+    Sweep("light-shafts-sweep", "light_shafts frame time over N (steps), M (block) and shadow-map resolution, "
+          "colonnade-shafts 800x600, camera and light moving",
+          "light_shafts", "paper", _shafts_sweep_grid, _shafts_frame, issue=4),
+    Sweep("light-shafts-accuracy", "light_shafts: relative RMSE against the single-scattering reference (and the "
+          "1024-step raymarch with exact shadow rays) vs ms per frame, over N, M and shadow-map resolution, "
+          "colonnade-shafts 320x240",
+          "light_shafts", "accuracy", _shafts_accuracy_grid, _shafts_accuracy, issue=4),
     Sweep("rbf-table2", "papers/003 Table 2: grid 15..40, 1 light precomputed and 1/2/4/8 dynamic lights",
           "rbf_propagation", "paper", paper=("rbf_propagation", "table2"), figure=_row_fps, issue=5),
     Sweep("rbf-table3", "papers/003 Table 3: 1..27 000 RBFs, dynamic and static medium",

@@ -66,7 +66,7 @@ NAME = "light_shafts"
 SETTINGS = {
     "steps": Setting(64, 1, 1 << 16, "N: samples along each view ray, over a whole M x M block when interleaved"),
     "block": Setting(4, 1, 32, "M: interleaving block size (1 = every pixel takes all N samples)"),
-    "shadow_map_res": Setting(512, 4, 8192, "texels per side of each shadow map (cube maps: per face)"),
+    "shadow_map_res": Setting(256, 4, 8192, "texels per side of each shadow map (cube maps: per face)"),
     "depth_bias": Setting(0.02, 0.0, 1.0e3, "shadow-map depth bias, scene units"),
     "jitter": Setting(1, 0, 1, "1: random sample offset per pixel (no banding); 0: step midpoints"),
     "scattering": Setting(1, 0, 1, "0: surfaces only (the paper's 'no scattering' row)"),
