@@ -51,15 +51,16 @@ def test_interrupted_sweep_keeps_its_rows_and_measures_the_rest(out):
     assert main(["bench", sweep.name, "--quick", "--device", "cpu", "--out", str(out)]) == 0
     again = load_rows(path)
     assert again[0] == rows[0] and len(again) == len(rows)
-    assert all(r["overhead_us"] > 0 for r in again)
+    cached = next(r for r in again if r["params"]["case"] == "all_cached")
+    assert cached["overhead_us"] > 0 and all(s["status"] == "cached" for s in cached["stages"].values())
 
 
 def test_sweeps_waiting_for_a_technique_say_so(out, capsys):
     assert main(["bench", "--list"]) == 0
     listing = capsys.readouterr().out
-    assert "raymarch-accuracy" in listing and "waits for light_shafts (issue 4)" in listing
-    assert main(["bench", "light-shafts", "--quick", "--out", str(out)]) == 2
-    assert "waits for technique 'light_shafts'" in capsys.readouterr().err
+    assert "raymarch-accuracy" in listing and "waits for rbf_propagation (issue 5)" in listing
+    assert main(["bench", "rbf-table2", "--quick", "--out", str(out)]) == 2
+    assert "waits for technique 'rbf_propagation'" in capsys.readouterr().err
 
 
 def test_paper_report_normalises_both_columns_to_the_first_row(tmp_path):

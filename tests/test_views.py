@@ -79,3 +79,25 @@ def test_a_volume_plot_is_not_blank():
     img = p.screenshot(return_img=True)
     p.close()
     assert not_blank(img) > 0.02
+
+
+def test_light_shafts_arrays_and_their_view():
+    from .test_light_shafts import pillar_scene
+
+    r = wv.Renderer(pillar_scene(width=32, height=24), technique="light_shafts", device="cpu", shadow_map_res=32)
+    r.render()
+    arrays = r.arrays(slice_res=24)
+    (pts,) = arrays["shadow_points"]  # one point light: a cube map
+    assert pts.shape == (6 * 32 * 32, 3)
+    hit = np.all(np.abs(pts) < 1e29, axis=1)
+    # every texel ray of the cube ends on the floor (y = 0), the pillar or escapes through the open sides
+    light = np.array([0.3, 1.4, -1.5])
+    np.testing.assert_allclose(np.linalg.norm(pts[hit] - light, axis=1), arrays["shadow_distance"][0][hit], rtol=1e-4)
+    assert hit.mean() > 0.3 and np.min(pts[hit, 1]) > -1e-3
+    lit = arrays["lit_slice"]
+    assert lit.shape == (24, 24, 3) and np.isfinite(lit).all() and lit.max() > 0
+    p = pv.Plotter(off_screen=True, window_size=(200, 150))
+    viz.technique_actors(p, arrays)
+    img = p.screenshot(return_img=True)
+    p.close()
+    assert not_blank(img) > 0.02

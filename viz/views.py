@@ -201,3 +201,41 @@ def _extent(scene) -> float:
     for s in scene.surfaces:
         pts += [s.vertices.min(0), s.vertices.max(0)]
     return float(np.ptp(np.vstack(pts), axis=0).max()) or 1.0
+
+
+def depth_surface(points, distance=None, name: str = "distance") -> pv.PolyData:
+    """A shadow map's depth surface: the world points its texel rays hit (escaped rays dropped),
+    coloured by their distance from the light."""
+    pts = np.asarray(points, np.float32)
+    keep = np.all(np.abs(pts) < 1e29, axis=1)
+    cloud = pv.PolyData(pts[keep])
+    if distance is not None:
+        cloud.point_data[name] = np.asarray(distance, np.float32)[keep]
+    return cloud
+
+
+def slice_plane(values, corners, name: str = "radiance") -> pv.StructuredGrid:
+    """An (H, W) or (H, W, 3) field sampled at cell centres of the parallelogram ``corners``
+    (4 x 3: origin, +u, +u+v, +v) as a surface with cell data (RGB shown as its mean)."""
+    v = np.asarray(values, np.float32)
+    h, w = v.shape[:2]
+    c = np.asarray(corners, np.float64)
+    s, t = np.meshgrid(np.linspace(0, 1, w + 1), np.linspace(0, 1, h + 1))
+    pts = c[0] + s[..., None] * (c[1] - c[0]) + t[..., None] * (c[3] - c[0])
+    grid = pv.StructuredGrid(pts[..., 0], pts[..., 1], pts[..., 2])
+    field = v.mean(axis=2) if v.ndim == 3 else v
+    grid.cell_data[name] = field.ravel()  # VTK orders cells with u fastest, like our (v, u) arrays
+    return grid
+
+
+def technique_actors(plotter: pv.Plotter, arrays: dict) -> pv.Plotter:
+    """Add what a technique exposes through ``Renderer.arrays()`` to a plotter."""
+    for i, pts in enumerate(arrays.get("shadow_points", [])):
+        cloud = depth_surface(pts, arrays["shadow_distance"][i])
+        if cloud.n_points:
+            plotter.add_mesh(cloud, scalars="distance", cmap="viridis", point_size=2, show_scalar_bar=False)
+    if "lit_slice" in arrays:
+        grid = slice_plane(arrays["lit_slice"], arrays["lit_slice_corners"])
+        plotter.add_mesh(grid, scalars="radiance", cmap="inferno", opacity=0.85, show_scalar_bar=False,
+                         log_scale=False)
+    return plotter

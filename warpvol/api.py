@@ -92,6 +92,11 @@ class Renderer:
         to time a full frame."""
         self._pipeline.changed(*(parts or PARTS))
 
+    def arrays(self, **options) -> dict:
+        """The technique's intermediate arrays after the last frame (numpy), e.g. light_shafts'
+        shadow-map depth surfaces and lit slice; {} for techniques with none to show."""
+        return self._technique.arrays(**options)
+
     def render(self) -> Frame:
         """Run the stages the scene calls for and the changes invalidated; return the Frame."""
         t = self._technique

@@ -3,7 +3,7 @@
     python -m warpvol render SCENE --technique NAME --out OUT.exr [--out OUT.png] [--device cpu|cuda]
                              [--spp N] [--set key=value ...] [--timings] [--exposure EV]
     python -m warpvol bench --list | SWEEP [--quick] [--device ...] [--out results] | report [SWEEP ...]
-    python -m warpvol view SCENE [--screenshot FILE.png] [--set key=value ...]
+    python -m warpvol view SCENE [--screenshot FILE.png] [--technique NAME] [--set key=value ...]
     python -m warpvol scenes
 
 ``--set`` takes a technique setting (``--set steps=128``) or a scene key in dotted form
@@ -98,6 +98,12 @@ def cmd_view(args) -> int:
 
     scene = wv.load_scene(args.scene, args.set or [])
     plotter = scene_plotter(scene, off_screen=args.screenshot is not None)
+    if args.technique:
+        from viz import technique_actors
+
+        renderer = wv.Renderer(scene, technique=args.technique, device=args.device)
+        renderer.render()
+        technique_actors(plotter, renderer.arrays())
     if args.screenshot:
         plotter.screenshot(args.screenshot)
         plotter.close()
@@ -139,6 +145,9 @@ def main(argv: list[str] | None = None) -> int:
     v.add_argument("scene", help="a .toml scene file or a built-in scene name")
     v.add_argument("--screenshot", default=None, help="render off screen to this PNG instead of opening a window")
     v.add_argument("--set", action="append", metavar="KEY=VALUE", help="scene key override")
+    v.add_argument("--technique", default=None, help="also show this technique's intermediate arrays "
+                   "(light_shafts: shadow-map depth surfaces and the lit volume on a slice)")
+    v.add_argument("--device", default=None, help="cpu | cuda (for --technique)")
     v.set_defaults(func=cmd_view)
     s = sub.add_parser("scenes", help="list the built-in scenes")
     s.set_defaults(func=cmd_scenes)

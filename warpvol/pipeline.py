@@ -107,6 +107,10 @@ class Technique:
     def output(self):
         raise NotImplementedError
 
+    def arrays(self) -> dict:
+        """Intermediate arrays of the last frame, as numpy, for looking inside (``viz``)."""
+        return {}
+
 
 class Frame:
     """A rendered image (H x W x 3 float32, linear RGB, row 0 at the top) and what it cost.

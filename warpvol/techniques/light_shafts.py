@@ -241,6 +241,30 @@ def add_images(offset: int, a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec
     out[tid] = a[tid] + b[tid]
 
 
+@wp.kernel
+def shadow_hit_points(offset: int, sm: ShadowMap, depth: wp.array(dtype=float), points: wp.array(dtype=wp.vec3)):
+    """Where each texel's ray meets a surface (the map's depth surface in world space)."""
+    tid = wp.tid() + offset
+    o, d = texel_ray(sm, tid)
+    t = depth[sm.offset + tid]
+    points[tid] = wp.where(t < INF, o + t * d, wp.vec3(INF))
+
+
+@wp.kernel
+def sample_lit_slice(offset: int, m: Media, lights: wp.array(dtype=Light), maps: wp.array(dtype=ShadowMap),
+                     depth: wp.array(dtype=float), corner: wp.vec3, edge_u: wp.vec3, edge_v: wp.vec3, res: int,
+                     view: wp.vec3, shadow_steps: int, out: wp.array(dtype=wp.vec3)):
+    """Radiance scattered per unit length toward a camera looking along ``view``, sum_l sigma_s p E v T,
+    on a plane (the same phase angle as the march: cos = view . wi)."""
+    tid = wp.tid() + offset
+    x = corner + (float(tid % res) + 0.5) / float(res) * edge_u + (float(tid / res) + 0.5) / float(res) * edge_v
+    li = wp.vec3(0.0)
+    for l in range(lights.shape[0]):
+        wi, e = light_arriving(m, lights, maps, depth, l, x, shadow_steps)
+        li += wp.cw_mul(in_scatter_at(m, x, wp.dot(view, wi)), e)
+    out[tid] = li
+
+
 def scene_bounds(scene) -> tuple[np.ndarray, np.ndarray]:
     """Bounds of the surfaces and media (what a directional light's map must cover)."""
     lo, hi = [], []
@@ -365,6 +389,41 @@ class LightShafts(Technique):
 
     def output(self):
         return self.image
+
+    def arrays(self, slice_res: int = 128) -> dict:
+        """Intermediate arrays for looking inside (``viz``): per light, the shadow map's depth
+        surface as world points (``shadow_points``, (texels, 3), INF where a ray escaped) and
+        its distances (``shadow_distance``); and ``lit_slice``, the in-scattered radiance toward
+        the camera on the vertical plane through the camera's target facing the camera
+        ((slice_res, slice_res, 3), with the plane's ``lit_slice_corners``, 4 x 3)."""
+        out = {"shadow_points": [], "shadow_distance": []}
+        structs = self._map_structs(occluders=bool(self.scene.surfaces)) if self.maps is not None else []
+        for sm in structs:
+            count = texels(sm.kind, sm.res)
+            if count == 0:
+                continue
+            pts = wp.empty(count, dtype=wp.vec3, device=self.device)
+            dev.launch(shadow_hit_points, count, [sm, self.depth, pts], self.device)
+            out["shadow_points"].append(pts.numpy())
+            out["shadow_distance"].append(self.depth.numpy()[sm.offset:sm.offset + count])
+        cam = self.scene.camera
+        target, origin = np.asarray(cam.target, float), np.asarray(cam.origin, float)
+        view = (target - origin) / np.linalg.norm(target - origin)
+        right = np.cross(view, cam.up)
+        right /= np.linalg.norm(right)
+        lo, hi = scene_bounds(self.scene)
+        half = 0.5 * float(np.max(hi - lo))
+        up = np.asarray(cam.up, float) / np.linalg.norm(cam.up)
+        corner = target - half * right - half * up
+        edge_u, edge_v = 2 * half * right, 2 * half * up
+        lit = wp.empty(slice_res * slice_res, dtype=wp.vec3, device=self.device)
+        dev.launch(sample_lit_slice, slice_res * slice_res,
+                   [self.uploads.media.struct, self.uploads.lights, self.maps, self.depth, wp.vec3(*corner),
+                    wp.vec3(*edge_u), wp.vec3(*edge_v), slice_res, wp.vec3(*view), self.settings["shadow_steps"],
+                    lit], self.device)
+        out["lit_slice"] = lit.numpy().reshape(slice_res, slice_res, 3)
+        out["lit_slice_corners"] = np.array([corner, corner + edge_u, corner + edge_u + edge_v, corner + edge_v])
+        return out
 
 
 TECHNIQUE = LightShafts
