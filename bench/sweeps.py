@@ -180,6 +180,42 @@ def _shafts_accuracy(params: dict, device: str, quick: bool) -> dict:
     return row
 
 
+def _shafts_edges_grid(quick: bool) -> list[dict]:
+    return [{"block": m} for m in ((2, 4) if quick else (2, 3, 4, 8))]
+
+
+def _shafts_edges(params: dict, device: str, quick: bool) -> dict:
+    """What interleaving costs at depth discontinuities: the interleaved image against the same
+    N taken per pixel, in pixels within M/2 of a depth jump (> 10 % between neighbours) and in
+    the others. Jitter off, so only the interleaving differs."""
+    import numpy as np
+
+    scene = _shafts_scene(quick)
+    full_r = wv.Renderer(scene, technique="light_shafts", device=device, steps=64, block=1, jitter=0)
+    full = full_r.render().image
+    depth = np.minimum(full_r.arrays(slice_res=2)["depth"], 1e3)
+    jump = np.zeros(depth.shape, bool)
+    for axis in (0, 1):
+        d = np.abs(np.diff(depth, axis=axis)) > 0.1 * np.minimum(depth[:-1] if axis == 0 else depth[:, :-1],
+                                                                  depth[1:] if axis == 0 else depth[:, 1:])
+        pad = [(0, 1), (0, 0)] if axis == 0 else [(0, 0), (0, 1)]
+        jump |= np.pad(d, pad) | np.pad(d, pad[::-1])
+    m = params["block"]
+    near = jump.copy()
+    for _ in range(m // 2):  # grow by M/2 pixels: the block window's reach
+        near[1:] |= near[:-1]
+        near[:-1] |= near[1:]
+        near[:, 1:] |= near[:, :-1]
+        near[:, :-1] |= near[:, 1:]
+    r = wv.Renderer(scene, technique="light_shafts", device=device, steps=64, block=m, jitter=0)
+    row = time_frames(r, repeats=1 if quick else 3, invalidate=("camera", "lights"))
+    err = np.abs(row["frame"].image - full).mean(axis=2) / full.mean()
+    row.update(edge_pixels=float(near.mean()), rel_err_edges=float(err[near].mean()),
+               rel_err_elsewhere=float(err[~near].mean()), scene=f"colonnade-shafts {scene.camera.width}x"
+               f"{scene.camera.height}, N = 64")
+    return row
+
+
 def _shafts_paper_fps(table: dict, params: dict):
     return next((r["fps"] for r in table["rows"] if r["mode"] == params.get("mode")), None)
 
@@ -207,6 +243,9 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
     Sweep("light-shafts-sweep", "light_shafts frame time over N (steps), M (block) and shadow-map resolution, "
           "colonnade-shafts 800x600, camera and light moving",
           "light_shafts", "paper", _shafts_sweep_grid, _shafts_frame, issue=4),
+    Sweep("light-shafts-edges", "light_shafts: the error interleaving leaves at depth discontinuities (mean |interleaved"
+          " - per-pixel N = 64| / mean, near depth jumps and elsewhere), colonnade-shafts 800x600",
+          "light_shafts", "edges", _shafts_edges_grid, _shafts_edges, issue=4),
     Sweep("light-shafts-accuracy", "light_shafts: relative RMSE against the single-scattering reference (and the "
           "1024-step raymarch with exact shadow rays) vs ms per frame, over N, M and shadow-map resolution, "
           "colonnade-shafts 320x240",

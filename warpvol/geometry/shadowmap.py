@@ -6,7 +6,9 @@ texel's ray (radial distance for perspective and cube maps, distance from the ma
 along the light's direction for orthographic ones; ``INF`` where the ray escapes). A point
 x is lit when its own distance minus ``bias`` (scene units) does not exceed the stored
 one; the four nearest texels' tests are blended bilinearly (PCF), which turns the
-texel staircase into a one-texel ramp.
+texel staircase into a one-texel ramp. Surfaces look themselves up from a point moved off
+the surface along its normal by a fraction of a texel (``texel_world_size``: normal-offset
+shadows), which removes self-shadowing "acne" that a constant bias cannot at grazing light.
 
 Texels of all maps share one float array; ``ShadowMap.offset`` is a map's first texel.
 A cube map holds six res x res faces in the order +x, -x, +y, -y, +z, -z.
@@ -138,6 +140,15 @@ def shadow_visibility(sm: ShadowMap, depth: wp.array(dtype=float), x: wp.vec3) -
     if wp.abs(u) > 1.0 or wp.abs(v) > 1.0:
         return 1.0
     return shadow_depth(sm, depth, sm.offset, (u * 0.5 + 0.5) * res - 0.5, (v * 0.5 + 0.5) * res - 0.5, dist)
+
+
+@wp.func
+def texel_world_size(sm: ShadowMap, x: wp.vec3) -> float:
+    """Width of one texel of the map at x, in scene units (for normal-offset lookups)."""
+    if sm.kind == ORTHOGRAPHIC:
+        return 2.0 * sm.extent / float(sm.res)
+    ext = wp.where(sm.kind == CUBE, 1.0, sm.extent)
+    return 2.0 * ext * wp.length(x - sm.origin) / float(sm.res)
 
 
 def texels(kind: int, res: int) -> int:

@@ -34,7 +34,8 @@ Where this departs from the paper, and why:
 * Any medium of warpvol: homogeneous media use closed-form transmittance; heterogeneous
   ones (a grid) accumulate optical depth at every one of the N steps, and march
   ``shadow_steps`` steps toward each light.
-* Shadow maps are looked up with 2x2 percentage-closer filtering.
+* Shadow maps are looked up with 2x2 percentage-closer filtering, and surfaces read them
+  from a point half a texel off the surface along its normal (normal-offset shadows).
 * Outside the medium's bounds (and beyond the visible surface) nothing scatters, so the
   march covers only the part of the ray inside the media.
 
@@ -52,7 +53,7 @@ import warp as wp
 from .. import device as dev
 from ..geometry.camera import PinholeCamera, camera_ray, pinhole
 from ..geometry.mesh import Surfaces, surface_hit
-from ..geometry.shadowmap import ShadowMap, shadow_map_for, shadow_visibility, texel_ray, texels
+from ..geometry.shadowmap import ShadowMap, shadow_map_for, shadow_visibility, texel_ray, texel_world_size, texels
 from ..media.volume import Media, homogeneous_optical_depth, in_scatter_at, ray_box, sigma_t_at
 from ..physics.brdf import brdf_eval
 from ..physics.constants import INF, RAY_EPS
@@ -98,12 +99,14 @@ def cast_shadow_map(offset: int, s: Surfaces, sm: ShadowMap, depth: wp.array(dty
 
 @wp.func
 def light_arriving(m: Media, lights: wp.array(dtype=Light), maps: wp.array(dtype=ShadowMap),
-                   depth: wp.array(dtype=float), l: int, x: wp.vec3, shadow_steps: int):
-    """(wi, E v T): direction to light l and the irradiance reaching x past surfaces and media."""
+                   depth: wp.array(dtype=float), l: int, x: wp.vec3, n: wp.vec3, shadow_steps: int):
+    """(wi, E v T): direction to light l and the irradiance reaching x past surfaces and media.
+    On a surface, ``n`` is its normal and the map is read half a texel off it (normal offset);
+    in the medium n = 0."""
     wi, dist, e = light_incident(lights[l], x)
     if dist <= 0.0:
         return wi, wp.vec3(0.0)
-    v = shadow_visibility(maps[l], depth, x)
+    v = shadow_visibility(maps[l], depth, x + (0.75 * texel_world_size(maps[l], x)) * n)
     if v <= 0.0:
         return wi, wp.vec3(0.0)
     tr = transmittance_rgb(marched_optical_depth(m, x, wi, 0.0, dist, shadow_steps))
@@ -124,7 +127,7 @@ def shade_visible_surface(offset: int, cam: PinholeCamera, m: Media, s: Surfaces
         n = wp.where(wp.dot(n, d) < 0.0, n, -n)
         p = cam.origin + t * d + RAY_EPS * n
         for l in range(lights.shape[0]):
-            wi, e = light_arriving(m, lights, maps, depth, l, p, shadow_steps)
+            wi, e = light_arriving(m, lights, maps, depth, l, p, n, shadow_steps)
             cos_l = wp.dot(n, wi)
             if cos_l > 0.0:
                 L0 += cos_l * wp.cw_mul(brdf_eval(s.material[f], n, -d, wi), e)
@@ -178,7 +181,7 @@ def march_shafts(offset: int, cam: PinholeCamera, m: Media, lights: wp.array(dty
                     x = o + lk * d
                     li = wp.vec3(0.0)
                     for l in range(lights.shape[0]):
-                        wi, e = light_arriving(m, lights, maps, depth, l, x, st.shadow_steps)
+                        wi, e = light_arriving(m, lights, maps, depth, l, x, wp.vec3(0.0), st.shadow_steps)
                         li += wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e)
                     tv = transmittance_rgb(homogeneous_optical_depth(m, o, d, 0.0, lk))
                     acc += wp.cw_mul(tv, li) * w
@@ -197,7 +200,7 @@ def march_shafts(offset: int, cam: PinholeCamera, m: Media, lights: wp.array(dty
                 if st.scattering == 1 and k % stride == k0:
                     li = wp.vec3(0.0)
                     for l in range(lights.shape[0]):
-                        wi, e = light_arriving(m, lights, maps, depth, l, x, st.shadow_steps)
+                        wi, e = light_arriving(m, lights, maps, depth, l, x, wp.vec3(0.0), st.shadow_steps)
                         li += wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e)
                     tv = transmittance_rgb(tau + homogeneous_optical_depth(m, o, d, ta, lk) + sig * (u * w))
                     acc += wp.cw_mul(tv, li) * w
@@ -260,7 +263,7 @@ def sample_lit_slice(offset: int, m: Media, lights: wp.array(dtype=Light), maps:
     x = corner + (float(tid % res) + 0.5) / float(res) * edge_u + (float(tid / res) + 0.5) / float(res) * edge_v
     li = wp.vec3(0.0)
     for l in range(lights.shape[0]):
-        wi, e = light_arriving(m, lights, maps, depth, l, x, shadow_steps)
+        wi, e = light_arriving(m, lights, maps, depth, l, x, wp.vec3(0.0), shadow_steps)
         li += wp.cw_mul(in_scatter_at(m, x, wp.dot(view, wi)), e)
     out[tid] = li
 
@@ -391,12 +394,16 @@ class LightShafts(Technique):
         return self.image
 
     def arrays(self, slice_res: int = 128) -> dict:
-        """Intermediate arrays for looking inside (``viz``): per light, the shadow map's depth
+        """Intermediate arrays for looking inside (``viz``): ``depth``, the distance to the visible
+        surface per pixel (H x W, INF where none); per light, the shadow map's depth
         surface as world points (``shadow_points``, (texels, 3), INF where a ray escaped) and
         its distances (``shadow_distance``); and ``lit_slice``, the in-scattered radiance toward
         the camera on the vertical plane through the camera's target facing the camera
         ((slice_res, slice_res, 3), with the plane's ``lit_slice_corners``, 4 x 3)."""
+        cam = self.scene.camera
         out = {"shadow_points": [], "shadow_distance": []}
+        if self.scene.surfaces and self.t_hit is not None:
+            out["depth"] = self.t_hit.numpy().reshape(cam.height, cam.width)
         structs = self._map_structs(occluders=bool(self.scene.surfaces)) if self.maps is not None else []
         for sm in structs:
             count = texels(sm.kind, sm.res)
@@ -406,7 +413,6 @@ class LightShafts(Technique):
             dev.launch(shadow_hit_points, count, [sm, self.depth, pts], self.device)
             out["shadow_points"].append(pts.numpy())
             out["shadow_distance"].append(self.depth.numpy()[sm.offset:sm.offset + count])
-        cam = self.scene.camera
         target, origin = np.asarray(cam.target, float), np.asarray(cam.origin, float)
         view = (target - origin) / np.linalg.norm(target - origin)
         right = np.cross(view, cam.up)
