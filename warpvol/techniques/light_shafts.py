@@ -106,7 +106,7 @@ def light_arriving(m: Media, lights: wp.array(dtype=Light), maps: wp.array(dtype
     wi, dist, e = light_incident(lights[l], x)
     if dist <= 0.0:
         return wi, wp.vec3(0.0)
-    v = shadow_visibility(maps[l], depth, x + (0.75 * texel_world_size(maps[l], x)) * n)
+    v = shadow_visibility(maps[l], depth, x + (0.5 * texel_world_size(maps[l], x)) * n)
     if v <= 0.0:
         return wi, wp.vec3(0.0)
     tr = transmittance_rgb(marched_optical_depth(m, x, wi, 0.0, dist, shadow_steps))
