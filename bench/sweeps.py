@@ -198,8 +198,9 @@ def _shafts_edges(params: dict, device: str, quick: bool) -> dict:
     for axis in (0, 1):
         d = np.abs(np.diff(depth, axis=axis)) > 0.1 * np.minimum(depth[:-1] if axis == 0 else depth[:, :-1],
                                                                   depth[1:] if axis == 0 else depth[:, 1:])
-        pad = [(0, 1), (0, 0)] if axis == 0 else [(0, 0), (0, 1)]
-        jump |= np.pad(d, pad) | np.pad(d, pad[::-1])
+        after, before = [(0, 0), (0, 0)], [(0, 0), (0, 0)]
+        after[axis], before[axis] = (0, 1), (1, 0)
+        jump |= np.pad(d, after) | np.pad(d, before)  # both pixels of a jumping pair
     m = params["block"]
     near = jump.copy()
     for _ in range(m // 2):  # grow by M/2 pixels: the block window's reach
