@@ -92,6 +92,37 @@ def rbf_cornell():
     }
 
 
+def rbf_single():
+    """Cornell box with one large Gaussian RBF and one point light (papers/003, figure 4a)."""
+    return {
+        "name": "rbf-single",
+        "camera": _camera(),
+        "lights": [{"type": "point", "position": [0.0, 0.8, 0.2], "intensity": [4.0, 3.6, 3.0]}],
+        "media": [{"type": "rbf", "centers": [[0.0, -0.2, 0.0]], "radius": 0.35, "peak": 4.0, "albedo": 0.9,
+                   "phase": {"type": "isotropic"}}],
+        "surfaces": [{"type": "procedural", "name": "cornell_box", "diffuse": 0.7}],
+    }
+
+
+def rbf_thick_fog():
+    """Cornell box filled with thick fog of 1000 RBFs, lit by eight coloured point lights
+    (papers/003, figure 4c)."""
+    rng = np.random.default_rng(7)
+    centers = rng.uniform(-0.85, 0.85, (1000, 3))
+    colours = [[2, 1, 1], [1, 2, 1], [1, 1, 2], [2, 2, 1], [2, 1, 2], [1, 2, 2], [2, 2, 2], [1.5, 1.5, 1]]
+    lights = [{"type": "point", "position": [0.6 * np.cos(a), 0.5 * np.sin(2 * a), 0.6 * np.sin(a)],
+               "intensity": [0.4 * c for c in col]} for a, col in zip(np.linspace(0, 2 * np.pi, 8, endpoint=False),
+                                                                      colours)]
+    return {
+        "name": "rbf-thick-fog",
+        "camera": _camera(),
+        "lights": lights,
+        "media": [{"type": "rbf", "centers": centers, "radius": 0.12, "peak": 1.5, "albedo": 0.9,
+                   "phase": {"type": "hg", "g": 0.3}}],
+        "surfaces": [{"type": "procedural", "name": "cornell_box", "diffuse": 0.7}],
+    }
+
+
 def particle_cloud():
     """A cloud of 1024 overlapping spheres under the sun and a sky (papers/000 set-up)."""
     return {
@@ -121,6 +152,8 @@ BUILTIN = {
     "point-in-fog": point_in_fog,
     "smoke-grid": smoke_grid,
     "rbf-cornell": rbf_cornell,
+    "rbf-single": rbf_single,
+    "rbf-thick-fog": rbf_thick_fog,
     "particle-cloud": particle_cloud,
     "colonnade-shafts": colonnade_shafts,
 }
