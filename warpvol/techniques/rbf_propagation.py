@@ -25,7 +25,9 @@ fixed-step ray march that reads both (equations 5, 8-10). Stages:
     on a ray along an axis it adds sigma_t h per cell, on a diagonal sigma_t h / |w|_1.
 
   The cell holding a point light starts at K(X) (paper) or sigma_t |X - S| (corrected);
-  outside the grid T = 0. ``wavefront = 0`` sweeps the whole grid ``iterations`` times
+  outside the grid T = 0, which the corrected rule places on the grid's face, half a cell
+  from the first centre, so a beam along an axis through a homogeneous grid gets exactly
+  sigma_t times the distance. ``wavefront = 0`` sweeps the whole grid ``iterations`` times
   (Jacobi, as the paper's fragment shader; 0 = 3n sweeps, enough for the wave to cross
   the grid); ``wavefront = 1`` (the paper's future work) updates only the shell of cells
   at Manhattan distance k from the light at step k, in place, so each cell is computed
@@ -202,8 +204,8 @@ def propagate_optical_depth(offset: int, ev: wp.array(dtype=wp.vec3), v: Volume,
     for axis in range(3):
         comp = w[axis]
         use = comp != 0.0
-        if shell >= 0 and a[axis] == 0:
-            use = False  # that neighbour is not upwind of the wavefront
+        if shell >= 0 and a[axis] == 0 and lights[l].kind != DIRECTIONAL:
+            use = False  # in the light's own slab that neighbour lies on the next shell, not upwind
         if use:
             step = wp.where(comp > 0.0, 1, -1)
             ni = i
@@ -221,10 +223,13 @@ def propagate_optical_depth(offset: int, ev: wp.array(dtype=wp.vec3), v: Volume,
             t_n = wp.vec3(0.0)  # outside the grid: no medium, no optical depth
             if ni >= 0 and nj >= 0 and nk >= 0 and ni < v.n[0] and nj < v.n[1] and nk < v.n[2]:
                 t_n = tau_in[base + cell_index(v, ni, nj, nk)]
+            elif rule == 1:
+                weight = 2.0 * weight  # T = 0 holds on the grid's face, half a cell away
             acc += weight * t_n
             wsum += weight
     out = wp.vec3(0.0)
-    if wsum <= 0.0:  # the light's own cell
+    own = lights[l].kind != DIRECTIONAL and a[0] + a[1] + a[2] == 0
+    if own or wsum <= 0.0:  # the light's own cell
         out = sig
         if rule == 1 and lights[l].kind != DIRECTIONAL:
             out = sig * wp.length(x - lights[l].position)
@@ -337,9 +342,7 @@ def grid_bounds(scene) -> tuple[np.ndarray, np.ndarray]:
                 hi.append(m.positions.max(0) + m.radius)
     if not lo:
         return np.full(3, -1.0), np.full(3, 1.0)
-    lo, hi = np.min(lo, 0).astype(np.float64), np.max(hi, 0).astype(np.float64)
-    pad = 1e-4 * max(float(np.max(hi - lo)), 1e-6)
-    return lo - pad, hi + pad
+    return np.min(lo, 0).astype(np.float64), np.max(hi, 0).astype(np.float64)
 
 
 class RBFPropagation(Technique):
@@ -451,7 +454,7 @@ class RBFPropagation(Technique):
         n = self.settings["grid"]
         out = {"bounds": (tuple(self.volume.lo), tuple(self.volume.hi)),
                "extinction": self.ev.numpy().reshape(n, n, n, 3)}
-        if self.scene.lights and self.opv is not None and self.opv.shape[0] > 1:
+        if self.scene.lights and self.opv is not None and self.opv.shape[0] == len(self.scene.lights) * n**3:
             out["optical_depth"] = self.opv.numpy().reshape(len(self.scene.lights), n, n, n, 3)
         return out
 
