@@ -221,6 +221,105 @@ def _shafts_paper_fps(table: dict, params: dict):
     return next((r["fps"] for r in table["rows"] if r["mode"] == params.get("mode")), None)
 
 
+# --- RBF propagation (papers/003) -------------------------------------------------------------
+
+TABLE2_COLUMNS = {"1L_P": (1, False), "1L": (1, True), "2L": (2, True), "4L": (4, True), "8L": (8, True)}
+
+
+def _rbf_scene(quick: bool, lights: int = 1, rbfs: int | None = None, width: int = 800, height: int = 600):
+    """rbf-thick-fog's box and first ``lights`` lights; its 1000 RBFs, or ``rbfs`` random ones
+    whose radius shrinks as rbfs^(-1/3) so the fog's mass stays about the same."""
+    import numpy as np
+
+    if quick:
+        width, height = 80, 60
+    from warpvol.scene.procedural import rbf_thick_fog
+
+    d = rbf_thick_fog()
+    d["camera"].update(width=width, height=height)
+    d["lights"] = d["lights"][:lights]
+    if rbfs is not None:
+        rng = np.random.default_rng(rbfs)
+        d["media"][0].update(centers=rng.uniform(-0.85, 0.85, (rbfs, 3)), radius=0.12 * (1000 / rbfs) ** (1 / 3))
+    return wv.load_scene(d)
+
+
+def _table2_grid(quick: bool) -> list[dict]:
+    grids = (15, 20) if quick else (15, 20, 30, 40)
+    cols = ("1L_P", "1L") if quick else tuple(TABLE2_COLUMNS)
+    return [{"grid": g, "column": c} for g in grids for c in cols]
+
+
+def _table2(params: dict, device: str, quick: bool) -> dict:
+    """Precomputed (P): only the march runs; dynamic: medium and lights change every frame."""
+    lights, dynamic = TABLE2_COLUMNS[params["column"]]
+    r = wv.Renderer(_rbf_scene(quick, lights), technique="rbf_propagation", device=device, grid=params["grid"])
+    return time_frames(r, repeats=2 if quick else 3, invalidate=("medium", "lights", "camera") if dynamic else ("camera",))
+
+
+def _table2_fps(table: dict, params: dict):
+    row = next(r for r in table["rows"] if r["grid"] == params["grid"])
+    return row["fps"][table["columns"].index(params["column"])]
+
+
+def _table3_grid(quick: bool) -> list[dict]:
+    counts = (1, 125) if quick else (1, 125, 1000, 8000, 27000)
+    return [{"rbfs": n, "column": c} for n in counts for c in ("dynamic", "static")]
+
+
+def _table3(params: dict, device: str, quick: bool) -> dict:
+    r = wv.Renderer(_rbf_scene(quick, 1, params["rbfs"]), technique="rbf_propagation", device=device, grid=20)
+    dynamic = params["column"] == "dynamic"
+    return time_frames(r, repeats=2 if quick else 3, invalidate=("medium", "lights", "camera") if dynamic else ("camera",))
+
+
+def _table3_fps(table: dict, params: dict):
+    row = next(r for r in table["rows"] if r["rbfs"] == params["rbfs"])
+    return row["fps"][("dynamic", "static").index(params["column"])]
+
+
+def _rules_grid(quick: bool) -> list[dict]:
+    grids = (8, 12) if quick else (10, 15, 20, 30, 40)
+    return [{"grid": g, "rule": r, "wavefront": w} for g in grids for r in (0, 1) for w in (1, 0)]
+
+
+def _rules(params: dict, device: str, quick: bool) -> dict:
+    """The OPV against optical depth marched from each cell centre to each light through the
+    same EV (8 steps per cell), on rbf-cornell's medium and two lights."""
+    import numpy as np
+
+    scene = wv.load_scene("rbf-cornell", ["camera.width=8", "camera.height=6"])
+    r = wv.Renderer(scene, technique="rbf_propagation", device=device, **params)
+    row = time_frames(r, repeats=1 if quick else 3, invalidate=("lights",))
+    a = r.arrays(exact=True)
+    err = np.abs(a["optical_depth"] - a["optical_depth_exact"])[..., 0]
+    exact = a["optical_depth_exact"][..., 0]
+    row.update(mean_abs_error=float(err.mean()), mean_exact=float(exact.mean()),
+               rel_error=float(err.mean() / exact.mean()), max_abs_error=float(err.max()),
+               p95_rel_cell=float(np.percentile(err / np.maximum(exact, 1e-3), 95)))
+    return row
+
+
+def _rbf_accuracy_grid(quick: bool) -> list[dict]:
+    if quick:
+        return [{"grid": 8, "steps": 16}, {"grid": 16, "steps": 16}]
+    return [{"grid": g, "steps": s} for g in (10, 15, 20, 30, 40) for s in (16, 32, 64, 128)]
+
+
+def _rbf_accuracy(params: dict, device: str, quick: bool) -> dict:
+    w, h = (32, 24) if quick else (80, 60)
+    scene = wv.load_scene("rbf-cornell", [f"camera.width={w}", f"camera.height={h}"])
+    spp = 16 if quick else 1024
+    ref, floor = reference_image(scene, device, spp=spp, max_bounces=1, pixel_area=0)
+    r = wv.Renderer(scene, technique="rbf_propagation", device=device, **params)
+    row = time_frames(r, repeats=2 if quick else 3)
+    row["rel_rmse"] = wv.relative_rmse(row["frame"].image, ref)
+    row["rel_rmse_corrected"] = max(row["rel_rmse"] ** 2 - floor**2, 0.0) ** 0.5
+    row["reference"] = {"spp": 2 * spp, "max_bounces": 1, "pixel_area": 0, "rel_rmse_floor": floor}
+    row["scene"] = f"rbf-cornell {w}x{h}"
+    return row
+
+
 # --- the papers' tables: runnable once their techniques land ------------------------------
 
 def _row_fps(table: dict, params: dict):
@@ -251,10 +350,20 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
           "1024-step raymarch with exact shadow rays) vs ms per frame, over N, M and shadow-map resolution, "
           "colonnade-shafts 320x240",
           "light_shafts", "accuracy", _shafts_accuracy_grid, _shafts_accuracy, issue=4),
-    Sweep("rbf-table2", "papers/003 Table 2: grid 15..40, 1 light precomputed and 1/2/4/8 dynamic lights",
-          "rbf_propagation", "paper", paper=("rbf_propagation", "table2"), figure=_row_fps, issue=5),
-    Sweep("rbf-table3", "papers/003 Table 3: 1..27 000 RBFs, dynamic and static medium",
-          "rbf_propagation", "paper", paper=("rbf_propagation", "table3"), figure=_row_fps, issue=5),
+    Sweep("rbf-table2", "papers/003 Table 2: grid 15..40, 1 light precomputed (P: only the march runs) and 1/2/4/8 "
+          "dynamic lights (medium and lights change every frame), rbf-thick-fog's 1000 RBFs, 800x600",
+          "rbf_propagation", "paper", _table2_grid, _table2, paper=("rbf_propagation", "table2"),
+          figure=_table2_fps, issue=5),
+    Sweep("rbf-table3", "papers/003 Table 3: 1..27 000 RBFs at grid 20, one light, dynamic (all stages) and static "
+          "(only the march), 800x600",
+          "rbf_propagation", "paper", _table3_grid, _table3, paper=("rbf_propagation", "table3"),
+          figure=_table3_fps, issue=5),
+    Sweep("rbf-propagation-rules", "papers/003 equation 6 as printed (rule 0) and corrected (rule 1), wavefront or "
+          "whole-grid sweeps, against optical depth marched from each cell centre to each light (rbf-cornell)",
+          "rbf_propagation", "rules", _rules_grid, _rules, issue=5),
+    Sweep("rbf-accuracy", "rbf_propagation: relative RMSE against the single-scattering reference vs ms per frame, "
+          "over grid size and march steps, rbf-cornell 80x60",
+          "rbf_propagation", "accuracy", _rbf_accuracy_grid, _rbf_accuracy, issue=5),
     Sweep("illumination-network", "papers/000: 1024 and 512 particles at 128 directions, one iteration per frame",
           "illumination_network", "paper", paper=("illumination_network",), figure=_row_fps, issue=6),
     Sweep("depth-impostors", "papers/004: 8000 particles, blocks 0..1600",

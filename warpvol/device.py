@@ -52,11 +52,14 @@ def threads() -> int:
     return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
 
 
+MIN_SPLIT = 4096  # threads below which a CPU launch is not split
+
+
 def launch(kernel, dim: int, inputs: list, device: str, split: bool = True):
     """Launch ``kernel`` over ``dim`` threads; its first argument is the index offset."""
     global _pool
     n = threads() if split and str(device) == "cpu" else 1
-    if n <= 1 or dim < 2 * n:
+    if n <= 1 or dim < MIN_SPLIT:  # small launches cost less than handing them to threads
         wp.launch(kernel, dim=dim, inputs=[0, *inputs], device=device)
         return
     if _pool is None or _pool._max_workers != n:

@@ -16,16 +16,16 @@ from .shading import light_array
 class SceneUploads:
     """Device copies of a technique's scene: ``media``, ``surfaces`` and ``lights``."""
 
-    def __init__(self, technique: Technique):
+    def __init__(self, technique: Technique, medium: bool = True):
         self.t = technique
+        self._medium = medium  # False: the technique builds its own view of the media
         self.media: MediaBuffers | None = None
         self.lights = None
         self._surfaces: SurfaceBuffers | None = None
         self._no_surfaces: SurfaceBuffers | None = None
 
     def stages(self) -> list[Stage]:
-        return [
-            Stage("medium", self._upload_medium, reads=("medium",)),
+        return [Stage("medium", self._upload_medium, reads=("medium",))] * self._medium + [
             Stage("surfaces", self._upload_surfaces, reads=("surfaces",), needed=bool(self.t.scene.surfaces)),
             Stage("lights", self._upload_lights, reads=("lights",)),
         ]

@@ -353,7 +353,7 @@ class RBFPropagation(Technique):
 
     def __init__(self, scene, device, settings, progress=False):
         super().__init__(scene, device, settings, progress)
-        self.uploads = SceneUploads(self)
+        self.uploads = SceneUploads(self, medium=False)  # the EV replaces the media's own buffers
         self.ev = self.opv = self.image = None
         self.volume = None
 
@@ -367,7 +367,7 @@ class RBFPropagation(Technique):
 
     def stages(self):
         return self.uploads.stages() + [
-            Stage("inject", self._inject, reads=("medium", "surfaces"), settings=("grid",)),
+            Stage("inject", self._inject, reads=("medium", "surfaces"), settings=("grid",)),  # the density stage
             Stage("propagate", self._propagate, reads=("lights",), settings=("rule", "wavefront", "iterations"),
                   after=("inject", "lights"), needed=bool(self.scene.lights)),
             Stage("march", self._march, reads=("camera", "background", "medium"), settings=("steps",),
@@ -423,17 +423,19 @@ class RBFPropagation(Technique):
         cam = scene.camera
         npix = cam.width * cam.height
         medium = scene.media[0] if scene.media else None
-        media = u.media.struct
         if self.opv is None or not scene.lights:
             self.opv = wp.zeros(1, dtype=wp.vec3, device=self.device)
         self.image = wp.empty(npix, dtype=wp.vec3, device=self.device)
         albedo = wp.vec3(*medium.albedo) if medium is not None else wp.vec3(0.0)
-        phase = Phase()
-        if medium is not None:  # the first medium's; its table, if any, starts the media's phase table
+        phase, table = Phase(), np.zeros(1, np.float32)
+        if medium is not None:  # the first medium's
             phase.kind, phase.g, phase.offset = PHASE_KINDS[medium.phase.type], medium.phase.g, 0
-            phase.n = 0 if medium.phase.values is None else len(tabulate(medium.phase.values))
+            if medium.phase.values is not None:
+                table = tabulate(medium.phase.values).astype(np.float32)
+                phase.n = len(table)
+        phase_table = wp.array(table, dtype=float, device=self.device)
         dev.launch(march_volumes, npix, [pinhole(cam), u.surfaces, u.lights, self.ev, self.opv, self.volume, albedo,
-                                         phase, media.phase_table, self.settings["steps"], wp.vec3(*scene.background),
+                                         phase, phase_table, self.settings["steps"], wp.vec3(*scene.background),
                                          self.image], self.device)
 
     def output(self):
@@ -448,14 +450,17 @@ class RBFPropagation(Technique):
                    self.device)
         return out.numpy().reshape(len(self.scene.lights), n, n, n, 3)
 
-    def arrays(self) -> dict:
-        """``extinction`` (n, n, n, 3) [z, y, x], ``optical_depth`` (lights, n, n, n, 3), and
-        the volumes' ``bounds`` (lo, hi)."""
+    def arrays(self, exact: bool = False) -> dict:
+        """``extinction`` (n, n, n, 3) [z, y, x], ``optical_depth`` (lights, n, n, n, 3), the
+        volumes' ``bounds`` (lo, hi), and with ``exact`` the marched yardstick
+        ``optical_depth_exact`` of the same shape."""
         n = self.settings["grid"]
         out = {"bounds": (tuple(self.volume.lo), tuple(self.volume.hi)),
                "extinction": self.ev.numpy().reshape(n, n, n, 3)}
         if self.scene.lights and self.opv is not None and self.opv.shape[0] == len(self.scene.lights) * n**3:
             out["optical_depth"] = self.opv.numpy().reshape(len(self.scene.lights), n, n, n, 3)
+            if exact:
+                out["optical_depth_exact"] = self.exact_optical_depth()
         return out
 
 
