@@ -125,6 +125,9 @@ def test_raymarch_converges_to_airlight(device):
 def test_split_cpu_launch_is_deterministic(monkeypatch):
     """The CPU launch split over threads gives the same pixels as one thread (each pixel's
     random stream depends on its index only)."""
+    from warpvol import device as dev
+
+    monkeypatch.setattr(dev, "MIN_SPLIT", 1)  # split even this small image
     scene = wv.load_scene("fog-box", ["camera.width=20", "camera.height=15"])
     images = {}
     for n in ("1", "2", "3"):
