@@ -234,6 +234,14 @@ def technique_actors(plotter: pv.Plotter, arrays: dict) -> pv.Plotter:
         cloud = depth_surface(pts, arrays["shadow_distance"][i])
         if cloud.n_points:
             plotter.add_mesh(cloud, scalars="distance", cmap="viridis", point_size=2, show_scalar_bar=False)
+    if "optical_depth_exact" in arrays:  # rbf_propagation: |OPV - marched| per cell, first light
+        err = np.abs(arrays["optical_depth"][0] - arrays["optical_depth_exact"][0])[..., 0]
+        grid = volume_grid(err, *arrays["bounds"], name="optical depth error")
+        plotter.add_volume(grid, scalars="optical depth error", cmap="magma", opacity="linear",
+                           show_scalar_bar=True)
+    elif "extinction" in arrays:
+        plotter.add_volume(volume_grid(arrays["extinction"], *arrays["bounds"]), scalars="sigma_t", cmap="bone",
+                           opacity="sigmoid", show_scalar_bar=False)
     if "lit_slice" in arrays:
         grid = slice_plane(arrays["lit_slice"], arrays["lit_slice_corners"])
         plotter.add_mesh(grid, scalars="radiance", cmap="inferno", opacity=0.85, show_scalar_bar=False,

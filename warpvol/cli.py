@@ -103,7 +103,7 @@ def cmd_view(args) -> int:
 
         renderer = wv.Renderer(scene, technique=args.technique, device=args.device)
         renderer.render()
-        technique_actors(plotter, renderer.arrays())
+        technique_actors(plotter, renderer.arrays(for_view=True))
     if args.screenshot:
         plotter.screenshot(args.screenshot)
         plotter.close()
@@ -146,7 +146,7 @@ def main(argv: list[str] | None = None) -> int:
     v.add_argument("--screenshot", default=None, help="render off screen to this PNG instead of opening a window")
     v.add_argument("--set", action="append", metavar="KEY=VALUE", help="scene key override")
     v.add_argument("--technique", default=None, help="also show this technique's intermediate arrays "
-                   "(light_shafts: shadow-map depth surfaces and the lit volume on a slice)")
+                   "(light_shafts: shadow-map depth surfaces, lit slice; rbf_propagation: OPV error per cell)")
     v.add_argument("--device", default=None, help="cpu | cuda (for --technique)")
     v.set_defaults(func=cmd_view)
     s = sub.add_parser("scenes", help="list the built-in scenes")

@@ -107,8 +107,9 @@ class Technique:
     def output(self):
         raise NotImplementedError
 
-    def arrays(self) -> dict:
-        """Intermediate arrays of the last frame, as numpy, for looking inside (``viz``)."""
+    def arrays(self, for_view: bool = False) -> dict:
+        """Intermediate arrays of the last frame, as numpy, for looking inside (``viz``);
+        ``for_view`` adds what a picture needs beyond the frame's own arrays."""
         return {}
 
 

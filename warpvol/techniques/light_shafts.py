@@ -393,7 +393,7 @@ class LightShafts(Technique):
     def output(self):
         return self.image
 
-    def arrays(self, slice_res: int = 128) -> dict:
+    def arrays(self, slice_res: int = 128, for_view: bool = False) -> dict:
         """Intermediate arrays for looking inside (``viz``): ``depth``, the distance to the visible
         surface per pixel (H x W, INF where none); per light, the shadow map's depth
         surface as world points (``shadow_points``, (texels, 3), INF where a ray escaped) and

@@ -31,7 +31,7 @@ fixed-step ray march that reads both (equations 5, 8-10). Stages:
   (Jacobi, as the paper's fragment shader; 0 = 3n sweeps, enough for the wave to cross
   the grid); ``wavefront = 1`` (the paper's future work) updates only the shell of cells
   at Manhattan distance k from the light at step k, in place, so each cell is computed
-  once: n^3 work per light instead of 3n^4.
+  once (the other cells of each launch only test their shell index and return).
 * ``march`` (reads the camera): from the camera to the nearest surface in fixed steps of
   the grid's diagonal / ``steps``: sigma_t from the EV, optical depth to each light from the
   OPV (both trilinear), inverse-square falloff and the phase function, integrated exactly
@@ -306,11 +306,13 @@ def march_volumes(offset: int, cam: PinholeCamera, s: Surfaces, lights: wp.array
     if hit:
         nf = wp.where(wp.dot(n, d) < 0.0, n, -n)
         p = o + t_surf * d
+        # the surfaces bound the grid: keep a hit a rounding error outside it on the boundary
+        pc = wp.vec3(wp.clamp(p[0], v.lo[0], v.hi[0]), wp.clamp(p[1], v.lo[1], v.hi[1]), wp.clamp(p[2], v.lo[2], v.hi[2]))
         for l in range(lights.shape[0]):  # equation 10
             wi, dist, e = light_incident(lights[l], p)
             cos_l = wp.dot(nf, wi)
             if cos_l > 0.0:
-                tl = transmittance_rgb(volume_lookup(opv, l * cells, v, p))
+                tl = transmittance_rgb(volume_lookup(opv, l * cells, v, pc))
                 L += cos_l * wp.cw_mul(tr, wp.cw_mul(brdf_eval(s.material[face], nf, -d, wi), wp.cw_mul(e, tl)))
     else:
         L += wp.cw_mul(tr, background)
@@ -450,10 +452,11 @@ class RBFPropagation(Technique):
                    self.device)
         return out.numpy().reshape(len(self.scene.lights), n, n, n, 3)
 
-    def arrays(self, exact: bool = False) -> dict:
+    def arrays(self, exact: bool = False, for_view: bool = False) -> dict:
         """``extinction`` (n, n, n, 3) [z, y, x], ``optical_depth`` (lights, n, n, n, 3), the
-        volumes' ``bounds`` (lo, hi), and with ``exact`` the marched yardstick
-        ``optical_depth_exact`` of the same shape."""
+        volumes' ``bounds`` (lo, hi), and with ``exact`` (or ``for_view``) the marched
+        yardstick ``optical_depth_exact`` of the same shape."""
+        exact = exact or for_view
         n = self.settings["grid"]
         out = {"bounds": (tuple(self.volume.lo), tuple(self.volume.hi)),
                "extinction": self.ev.numpy().reshape(n, n, n, 3)}
