@@ -40,3 +40,18 @@ def scattered_fraction(sigma_t: float, length: float) -> float:
     if tau < 1.0e-4:
         return tau * (1.0 - 0.5 * tau)
     return 1.0 - transmittance(tau)
+
+
+@wp.func
+def step_integral(sigma_t: float, dt: float) -> float:
+    """integral_0^dt exp(-sigma_t s) ds = (1 - exp(-sigma_t dt)) / sigma_t: how much of a
+    constant source over a step of constant extinction leaves it; stable as sigma_t -> 0."""
+    tau = sigma_t * dt
+    if tau < 1.0e-4:
+        return dt * (1.0 - 0.5 * tau)
+    return (1.0 - wp.exp(-tau)) / sigma_t
+
+
+@wp.func
+def step_integral_rgb(sigma_t: wp.vec3, dt: float) -> wp.vec3:
+    return wp.vec3(step_integral(sigma_t[0], dt), step_integral(sigma_t[1], dt), step_integral(sigma_t[2], dt))

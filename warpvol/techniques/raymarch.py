@@ -30,7 +30,7 @@ from ..media.grid import lattice_trilinear_vec3
 from ..media.volume import Media, in_scatter_at, ray_box, sigma_t_at
 from ..physics.constants import INF
 from ..physics.lights import Light, light_incident
-from ..physics.transmittance import transmittance_rgb
+from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Setting, SettingsError, Stage, Technique
 from ..shading import light_transmittance, marched_optical_depth, surface_direct
 from ..upload import SceneUploads
@@ -52,15 +52,6 @@ class MarchSettings:
     shadow_grid: int  # nodes per axis of the baked transmittance lattice; 0: none
     grid_lo: wp.vec3
     grid_hi: wp.vec3
-
-
-@wp.func
-def step_factor(sigma: float, dt: float) -> float:
-    """integral_0^dt exp(-sigma s) ds, stable as sigma -> 0."""
-    tau = sigma * dt
-    if tau < 1.0e-4:
-        return dt * (1.0 - 0.5 * tau)
-    return (1.0 - wp.exp(-tau)) / sigma
 
 
 @wp.kernel
@@ -119,7 +110,7 @@ def march_single_scattering(offset: int, cam: PinholeCamera, m: Media, s: Surfac
                         else:
                             tl = light_transmittance(m, s, x, wi, dist, 0, rng, st.shadow_steps)
                         inscatter += wp.cw_mul(wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e), tl)
-                f = wp.vec3(step_factor(sig[0], dt), step_factor(sig[1], dt), step_factor(sig[2], dt))
+                f = step_integral_rgb(sig, dt)
                 L += wp.cw_mul(wp.cw_mul(tr, inscatter), f)
                 tr = wp.cw_mul(tr, transmittance_rgb(sig * dt))
     if hit:

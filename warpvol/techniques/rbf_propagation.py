@@ -60,7 +60,7 @@ from ..physics.constants import INF
 from ..physics.lights import DIRECTIONAL, Light, light_incident
 from ..physics.phase import KINDS as PHASE_KINDS
 from ..physics.phase import Phase, phase_eval, tabulate
-from ..physics.transmittance import transmittance_rgb
+from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Setting, Stage, Technique
 from ..upload import SceneUploads
 
@@ -263,14 +263,6 @@ def march_exact_optical_depth(offset: int, ev: wp.array(dtype=wp.vec3), v: Volum
     out[tid] = tau
 
 
-@wp.func
-def step_integral(sigma: float, dt: float) -> float:
-    tau = sigma * dt
-    if tau < 1.0e-4:
-        return dt * (1.0 - 0.5 * tau)
-    return (1.0 - wp.exp(-tau)) / sigma
-
-
 @wp.kernel
 def march_volumes(offset: int, cam: PinholeCamera, s: Surfaces, lights: wp.array(dtype=Light),
                   ev: wp.array(dtype=wp.vec3), opv: wp.array(dtype=wp.vec3), v: Volume, albedo: wp.vec3,
@@ -300,7 +292,7 @@ def march_volumes(offset: int, cam: PinholeCamera, s: Surfaces, lights: wp.array
                     wi, dist, e = light_incident(lights[l], x)
                     tl = transmittance_rgb(volume_lookup(opv, l * cells, v, x))
                     li += phase_eval(phase, phase_table, wp.dot(d, wi)) * wp.cw_mul(e, tl)
-                f = wp.vec3(step_integral(sig[0], seg), step_integral(sig[1], seg), step_integral(sig[2], seg))
+                f = step_integral_rgb(sig, seg)
                 L += wp.cw_mul(wp.cw_mul(tr, wp.cw_mul(wp.cw_mul(sig, albedo), li)), f)
                 tr = wp.cw_mul(tr, transmittance_rgb(sig * seg))
     if hit:
