@@ -146,7 +146,38 @@ def rules_section(rows: list[dict], png: Path | None) -> list[str]:
                     "same extinction volume in 8 steps per cell width."]
 
 
-SECTIONS = {"accuracy": accuracy_section, "rules": rules_section, "paper": paper_section, "overhead": overhead_section,
+def fitted_exponent(work, ms) -> float:
+    """Least-squares slope of log(ms) against log(work)."""
+    return float(np.polyfit(np.log(work), np.log(ms), 1)[0])
+
+
+def scaling_section(rows: list[dict], png: Path) -> list[str]:
+    lines = ["| stage | parameters | work | stage ms |", "|---|---|---|---|"]
+    fits = {}
+    for r in rows:
+        stage = r["params"]["stage"]
+        lines.append(f"| {stage} | {_params(r)} | {r['work']:.3g} | {r['stage_ms']:.2f} |")
+        fits.setdefault(stage, []).append((r["work"], r["stage_ms"]))
+    lines.append("")
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    for stage, pts in fits.items():
+        work, ms = np.array(pts).T
+        k = fitted_exponent(work, ms) if len(pts) > 1 else float("nan")
+        unit = "cells x sweeps" if stage == "propagate" else "pixels x steps"
+        lines.append(f"- {stage}: time ∝ ({unit})^**{k:.2f}** (least squares in log-log over {len(pts)} points; "
+                     "1 is proportional)")
+        ax.loglog(work, ms, "o", label=f"{stage}: exponent {k:.2f}")
+    ax.set(xlabel="work (cells x sweeps, pixels x steps)", ylabel="stage ms", title=rows[0]["sweep"])
+    ax.legend(fontsize=8)
+    ax.grid(True, which="both", lw=0.3)
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
+    return lines
+
+
+SECTIONS = {"accuracy": accuracy_section, "scaling": scaling_section, "rules": rules_section, "paper": paper_section, "overhead": overhead_section,
             "edges": edges_section}
 
 

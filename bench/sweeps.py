@@ -300,6 +300,33 @@ def _rules(params: dict, device: str, quick: bool) -> dict:
     return row
 
 
+def _scaling_grid(quick: bool) -> list[dict]:
+    if quick:
+        return [{"stage": "propagate", "grid": 8, "iterations": 4}, {"stage": "march", "width": 40, "steps": 16}]
+    prop = [{"stage": "propagate", "grid": g, "iterations": i} for g in (10, 20, 30, 40) for i in (10, 40)]
+    march = [{"stage": "march", "width": w, "steps": st} for w in (200, 400, 800) for st in (16, 64, 256)]
+    return prop + march
+
+
+def _scaling(params: dict, device: str, quick: bool) -> dict:
+    """One stage's time as its work grows: propagation (whole-grid sweeps, the paper's scheme)
+    against cells x sweeps, the march against pixels x steps (rbf-cornell, 2 lights, 4:3)."""
+    if params["stage"] == "propagate":
+        scene = wv.load_scene("rbf-cornell", ["camera.width=8", "camera.height=6"])
+        r = wv.Renderer(scene, technique="rbf_propagation", device=device, grid=params["grid"], wavefront=0,
+                        iterations=params["iterations"])
+        row = time_frames(r, repeats=2 if quick else 5, invalidate=("lights",))
+        row["work"] = params["grid"] ** 3 * params["iterations"]
+    else:
+        w = params["width"]
+        scene = wv.load_scene("rbf-cornell", [f"camera.width={w}", f"camera.height={w * 3 // 4}"])
+        r = wv.Renderer(scene, technique="rbf_propagation", device=device, grid=20, steps=params["steps"])
+        row = time_frames(r, repeats=2 if quick else 5, invalidate=("camera",))
+        row["work"] = w * (w * 3 // 4) * params["steps"]
+    row["stage_ms"] = row["stages"][params["stage"]]["median_ms"]
+    return row
+
+
 def _rbf_accuracy_grid(quick: bool) -> list[dict]:
     if quick:
         return [{"grid": 8, "steps": 16}, {"grid": 16, "steps": 16}]
@@ -361,6 +388,9 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
     Sweep("rbf-propagation-rules", "papers/003 equation 6 as printed (rule 0) and corrected (rule 1), wavefront or "
           "whole-grid sweeps, against optical depth marched from each cell centre to each light (rbf-cornell)",
           "rbf_propagation", "rules", _rules_grid, _rules, issue=5),
+    Sweep("rbf-scaling", "rbf_propagation: propagation time against cells x sweeps and march time against pixels x "
+          "steps, with the fitted exponents",
+          "rbf_propagation", "scaling", _scaling_grid, _scaling, issue=5),
     Sweep("rbf-accuracy", "rbf_propagation: relative RMSE against the single-scattering reference vs ms per frame, "
           "over grid size and march steps, rbf-cornell 80x60",
           "rbf_propagation", "accuracy", _rbf_accuracy_grid, _rbf_accuracy, issue=5),
