@@ -49,7 +49,8 @@ class Sweep:
 
     def points(self, quick: bool = False) -> list[dict]:
         if not self.available:
-            raise ValueError(f"sweep {self.name!r} waits for technique {self.technique!r} (issue {self.issue}); "
+            raise ValueError(f"sweep {self.name!r} waits for technique {self.technique!r} "
+                             f"({f'issue {self.issue}' if self.issue else 'no issue yet'}); "
                              f"runnable now: {', '.join(n for n, s in SWEEPS.items() if s.available)}")
         return self.grid(quick)
 

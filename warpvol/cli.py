@@ -70,7 +70,8 @@ def cmd_bench(args) -> int:
 
     if args.list or not args.sweep:
         for name, sweep in SWEEPS.items():
-            state = "runnable" if sweep.available else f"waits for {sweep.technique} (issue {sweep.issue})"
+            issue = f"issue {sweep.issue}" if sweep.issue else "no issue yet"
+            state = "runnable" if sweep.available else f"waits for {sweep.technique} ({issue})"
             print(f"{name:<22} {state:<40} {sweep.doc}")
         return 0
     if args.sweep[0] == "report":
