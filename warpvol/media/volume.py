@@ -188,6 +188,31 @@ def transmittance_estimate(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: floa
     return tr * w
 
 
+def medium_bounds(m) -> tuple[np.ndarray, np.ndarray] | None:
+    """Axis-aligned bounds (lo, hi) of a scene medium: RBFs reach CUTOFF radii past their
+    centres, particles one radius; None for an empty RBF or particle cloud."""
+    if isinstance(m, HomogeneousMedium):
+        half = 0.5 * np.asarray(m.size) if m.shape == "box" else np.full(3, m.radius)
+        return np.asarray(m.center) - half, np.asarray(m.center) + half
+    if isinstance(m, GridMedium):
+        return np.asarray(m.bounds_min), np.asarray(m.bounds_max)
+    pts = m.centers if isinstance(m, RBFMedium) else m.positions
+    if not len(pts):
+        return None
+    reach = float(CUTOFF) * m.radius if isinstance(m, RBFMedium) else m.radius
+    return pts.min(0) - reach, pts.max(0) + reach
+
+
+def scene_bounds(scene: Scene, media: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds (lo, hi) of the scene's surfaces and, with ``media``, its media; [-1, 1]^3 if empty."""
+    boxes = [(s.vertices.min(0), s.vertices.max(0)) for s in scene.surfaces]
+    if media:
+        boxes += [b for b in map(medium_bounds, scene.media) if b is not None]
+    if not boxes:
+        return np.full(3, -1.0), np.full(3, 1.0)
+    return np.min([b[0] for b in boxes], 0).astype(np.float64), np.max([b[1] for b in boxes], 0).astype(np.float64)
+
+
 class MediaBuffers:
     """Owns the device arrays (and hash grids) behind a ``Media`` struct."""
 
@@ -212,19 +237,16 @@ class MediaBuffers:
             offset.append(0)
             center.append((0.0, 0.0, 0.0))
             radius.append(0.0)
+            lo, hi = medium_bounds(m) or (np.full(3, 1.0), np.full(3, -1.0))  # empty cloud: nothing hits it
+            bmin.append(lo)
+            bmax.append(hi)
             if isinstance(m, HomogeneousMedium):
-                c = np.asarray(m.center)
-                half = 0.5 * np.asarray(m.size) if m.shape == "box" else np.full(3, m.radius)
                 kinds.append(int(BOX) if m.shape == "box" else int(SPHERE))
-                bmin.append(c - half)
-                bmax.append(c + half)
                 center[-1], radius[-1] = m.center, m.radius
                 sigma.append(m.sigma_t)
                 majorants.append(np.asarray(m.sigma_t))
             elif isinstance(m, GridMedium):
                 kinds.append(int(GRID))
-                bmin.append(np.asarray(m.bounds_min))
-                bmax.append(np.asarray(m.bounds_max))
                 dz, dy, dx = m.density.shape
                 dims[-1], offset[-1] = (dx, dy, dz), n_grid
                 grid_chunks.append(m.density.ravel())
@@ -235,12 +257,6 @@ class MediaBuffers:
                 pts = m.centers if isinstance(m, RBFMedium) else m.positions
                 reach = float(CUTOFF) * m.radius if isinstance(m, RBFMedium) else m.radius
                 kinds.append(int(RBF) if isinstance(m, RBFMedium) else int(PARTICLES))
-                if len(pts):
-                    bmin.append(pts.min(0) - reach)
-                    bmax.append(pts.max(0) + reach)
-                else:  # an empty cloud: bounds that nothing hits
-                    bmin.append(np.full(3, 1.0))
-                    bmax.append(np.full(3, -1.0))
                 radius[-1], offset[-1] = m.radius, n_points
                 point_chunks.append(pts)
                 point_media.append((len(kinds) - 1, n_points, len(pts), reach))

@@ -54,7 +54,7 @@ from .. import device as dev
 from ..geometry.camera import PinholeCamera, camera_ray, pinhole
 from ..geometry.mesh import Surfaces, surface_hit
 from ..geometry.shadowmap import ShadowMap, shadow_map_for, shadow_visibility, texel_ray, texel_world_size, texels
-from ..media.volume import Media, homogeneous_optical_depth, in_scatter_at, ray_box, sigma_t_at
+from ..media.volume import Media, homogeneous_optical_depth, in_scatter_at, ray_box, scene_bounds, sigma_t_at
 from ..physics.brdf import brdf_eval
 from ..physics.constants import INF, RAY_EPS
 from ..physics.lights import Light, light_incident
@@ -266,25 +266,6 @@ def sample_lit_slice(offset: int, m: Media, lights: wp.array(dtype=Light), maps:
         wi, e = light_arriving(m, lights, maps, depth, l, x, wp.vec3(0.0), shadow_steps)
         li += wp.cw_mul(in_scatter_at(m, x, wp.dot(view, wi)), e)
     out[tid] = li
-
-
-def scene_bounds(scene) -> tuple[np.ndarray, np.ndarray]:
-    """Bounds of the surfaces and media (what a directional light's map must cover)."""
-    lo, hi = [], []
-    for s in scene.surfaces:
-        lo.append(s.vertices.min(0))
-        hi.append(s.vertices.max(0))
-    for m in scene.media:
-        if m.type == "homogeneous":
-            half = 0.5 * np.asarray(m.size) if m.shape == "box" else np.full(3, m.radius)
-            lo.append(np.asarray(m.center) - half)
-            hi.append(np.asarray(m.center) + half)
-        elif m.type == "grid":
-            lo.append(np.asarray(m.bounds_min))
-            hi.append(np.asarray(m.bounds_max))
-    if not lo:
-        return np.full(3, -1.0), np.full(3, 1.0)
-    return np.min(lo, 0), np.max(hi, 0)
 
 
 class LightShafts(Technique):

@@ -54,7 +54,7 @@ from ..geometry.camera import PinholeCamera, camera_ray, pinhole
 from ..geometry.mesh import Surfaces, surface_hit
 from ..media.grid import lattice_trilinear_vec3
 from ..media.rbf import CUTOFF
-from ..media.volume import Media, MediaBuffers, ray_box, sigma_t_at
+from ..media.volume import Media, MediaBuffers, ray_box, scene_bounds, sigma_t_at
 from ..physics.brdf import brdf_eval
 from ..physics.constants import INF
 from ..physics.lights import DIRECTIONAL, Light, light_incident
@@ -311,34 +311,6 @@ def march_volumes(offset: int, cam: PinholeCamera, s: Surfaces, lights: wp.array
     image[tid] = L
 
 
-def grid_bounds(scene) -> tuple[np.ndarray, np.ndarray]:
-    """The volumes' domain: the surfaces' bounds, or without surfaces the media's (RBFs with
-    their cut-off radius)."""
-    lo, hi = [], []
-    for s in scene.surfaces:
-        lo.append(s.vertices.min(0))
-        hi.append(s.vertices.max(0))
-    if not lo:
-        for m in scene.media:
-            if m.type == "rbf" and len(m.centers):
-                cut = float(CUTOFF) * m.radius
-                lo.append(m.centers.min(0) - cut)
-                hi.append(m.centers.max(0) + cut)
-            elif m.type == "grid":
-                lo.append(np.asarray(m.bounds_min))
-                hi.append(np.asarray(m.bounds_max))
-            elif m.type == "homogeneous":
-                half = 0.5 * np.asarray(m.size) if m.shape == "box" else np.full(3, m.radius)
-                lo.append(np.asarray(m.center) - half)
-                hi.append(np.asarray(m.center) + half)
-            elif m.type == "particles" and len(m.positions):
-                lo.append(m.positions.min(0) - m.radius)
-                hi.append(m.positions.max(0) + m.radius)
-    if not lo:
-        return np.full(3, -1.0), np.full(3, 1.0)
-    return np.min(lo, 0).astype(np.float64), np.max(hi, 0).astype(np.float64)
-
-
 class RBFPropagation(Technique):
     """Extinction volume, opacity propagation volume, ray march (see the module docstring)."""
 
@@ -352,7 +324,8 @@ class RBFPropagation(Technique):
         self.volume = None
 
     def _volume(self) -> Volume:
-        lo, hi = grid_bounds(self.scene)
+        # the volumes span the surfaces, or without surfaces the media (RBFs with their cut-off)
+        lo, hi = scene_bounds(self.scene, media=not self.scene.surfaces)
         n = self.settings["grid"]
         v = Volume()
         v.lo, v.hi, v.n = wp.vec3(*lo), wp.vec3(*hi), wp.vec3i(n, n, n)
