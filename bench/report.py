@@ -53,6 +53,16 @@ def _plt():
     return plt
 
 
+def _save(fig, ax, png: Path, grid: bool = True) -> None:
+    """Legend (and log grid), tight layout, write the PNG, free the figure."""
+    ax.legend(fontsize=8)
+    if grid:
+        ax.grid(True, which="both", lw=0.3)
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+    _plt().close(fig)
+
+
 def accuracy_section(rows: list[dict], png: Path) -> list[str]:
     pts = [(r["median_ms"], r["rel_rmse_corrected"]) for r in rows]
     front = set(pareto_front(pts))
@@ -86,11 +96,7 @@ def accuracy_section(rows: list[dict], png: Path) -> list[str]:
     ax.axhline(0.15 * floor, color="grey", lw=0.8, ls=":", label="resolution (0.15 × reference noise)")
     ax.set(xscale="log", yscale="log", xlabel="ms per frame", ylabel="relative RMSE vs reference (its noise removed)",
            title=f"{rows[0]['sweep']} — {rows[0]['device']}")
-    ax.legend(fontsize=8)
-    ax.grid(True, which="both", lw=0.3)
-    fig.tight_layout()
-    fig.savefig(png, dpi=110)
-    plt.close(fig)
+    _save(fig, ax, png)
     return lines
 
 
@@ -111,10 +117,7 @@ def paper_section(rows: list[dict], png: Path) -> list[str]:
         ax.plot(x, [p / p0 if p else np.nan for p in paper], "s--", label="paper")
     ax.set_xticks(x, [_params(r) for r in rows], rotation=30, ha="right", fontsize=7)
     ax.set(ylabel="FPS ÷ first row", title=rows[0]["sweep"])
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(png, dpi=110)
-    plt.close(fig)
+    _save(fig, ax, png, grid=False)
     return lines
 
 
@@ -169,11 +172,7 @@ def scaling_section(rows: list[dict], png: Path) -> list[str]:
                      "1 is proportional)")
         ax.loglog(work, ms, "o", label=f"{stage}: exponent {k:.2f}")
     ax.set(xlabel="work (cells x sweeps, pixels x steps)", ylabel="stage ms", title=rows[0]["sweep"])
-    ax.legend(fontsize=8)
-    ax.grid(True, which="both", lw=0.3)
-    fig.tight_layout()
-    fig.savefig(png, dpi=110)
-    plt.close(fig)
+    _save(fig, ax, png)
     return lines
 
 

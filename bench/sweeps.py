@@ -81,19 +81,24 @@ def _raymarch_grid(quick: bool) -> list[dict]:
     return [{"steps": s, "shadow_grid": g} for g, s in itertools.product(grids, steps)]
 
 
+def score_against_reference(row: dict, scene, device: str, spp: int) -> dict:
+    """Add to ``row`` the relative RMSE of its frame against the reference at pixel centres in
+    single scattering (what the real-time techniques compute, without their error; two seeds
+    of ``spp``), raw and with the reference's own noise removed: that noise adds in
+    quadrature, E[err^2 to a noisy ref] = err^2 + floor^2."""
+    ref, floor = reference_image(scene, device, spp=spp, max_bounces=1, pixel_area=0)
+    row["rel_rmse"] = wv.relative_rmse(row["frame"].image, ref)
+    row["rel_rmse_corrected"] = max(row["rel_rmse"] ** 2 - floor**2, 0.0) ** 0.5
+    row["reference"] = {"spp": 2 * spp, "max_bounces": 1, "pixel_area": 0, "rel_rmse_floor": floor}
+    row["scene"] = f"{scene.name} {scene.camera.width}x{scene.camera.height}"
+    return row
+
+
 def _raymarch_accuracy(params: dict, device: str, quick: bool) -> dict:
     scene = _accuracy_scene(quick)
-    # pixel centres and single scattering: what the raymarch computes, without its error
-    ref, floor = reference_image(scene, device, spp=REFERENCE_SPP[quick], max_bounces=1, pixel_area=0)
     r = wv.Renderer(scene, technique="raymarch", device=device, steps=params["steps"],
                     shadow_steps=params["steps"], shadow_grid=params["shadow_grid"])
-    row = time_frames(r, repeats=2 if quick else 3)
-    row["rel_rmse"] = wv.relative_rmse(row["frame"].image, ref)
-    # the reference's own noise adds in quadrature: E[err^2 to a noisy ref] = err^2 + floor^2
-    row["rel_rmse_corrected"] = max(row["rel_rmse"] ** 2 - floor**2, 0.0) ** 0.5
-    row["reference"] = {"spp": 2 * REFERENCE_SPP[quick], "max_bounces": 1, "pixel_area": 0, "rel_rmse_floor": floor}
-    row["scene"] = f"smoke-grid {scene.camera.width}x{scene.camera.height}"
-    return row
+    return score_against_reference(time_frames(r, repeats=2 if quick else 3), scene, device, REFERENCE_SPP[quick])
 
 
 # --- the pipeline's own cost per frame ----------------------------------------------------
@@ -166,18 +171,12 @@ def _shafts_accuracy_grid(quick: bool) -> list[dict]:
 
 def _shafts_accuracy(params: dict, device: str, quick: bool) -> dict:
     scene = _shafts_scene(quick, *ACCURACY_SIZE)
-    spp = 16 if quick else 1024
-    ref, floor = reference_image(scene, device, spp=spp, max_bounces=1, pixel_area=0)
     base = baseline_image(scene, "raymarch", device, steps=64 if quick else 1024)
     r = wv.Renderer(scene, technique="light_shafts", device=device, **params)
     row = time_frames(r, repeats=2 if quick else 3, invalidate=("camera", "lights"))
-    image = row["frame"].image
-    row["rel_rmse"] = wv.relative_rmse(image, ref)
-    row["rel_rmse_corrected"] = max(row["rel_rmse"] ** 2 - floor**2, 0.0) ** 0.5
-    row["rel_rmse_raymarch"] = wv.relative_rmse(image, base)
-    row["reference"] = {"spp": 2 * spp, "max_bounces": 1, "pixel_area": 0, "rel_rmse_floor": floor,
-                        "raymarch_steps": 64 if quick else 1024}
-    row["scene"] = f"colonnade-shafts {scene.camera.width}x{scene.camera.height}"
+    score_against_reference(row, scene, device, 16 if quick else 1024)
+    row["rel_rmse_raymarch"] = wv.relative_rmse(row["frame"].image, base)
+    row["reference"]["raymarch_steps"] = 64 if quick else 1024
     return row
 
 
@@ -337,15 +336,8 @@ def _rbf_accuracy_grid(quick: bool) -> list[dict]:
 def _rbf_accuracy(params: dict, device: str, quick: bool) -> dict:
     w, h = (32, 24) if quick else (80, 60)
     scene = wv.load_scene("rbf-cornell", [f"camera.width={w}", f"camera.height={h}"])
-    spp = 16 if quick else 1024
-    ref, floor = reference_image(scene, device, spp=spp, max_bounces=1, pixel_area=0)
     r = wv.Renderer(scene, technique="rbf_propagation", device=device, **params)
-    row = time_frames(r, repeats=2 if quick else 3)
-    row["rel_rmse"] = wv.relative_rmse(row["frame"].image, ref)
-    row["rel_rmse_corrected"] = max(row["rel_rmse"] ** 2 - floor**2, 0.0) ** 0.5
-    row["reference"] = {"spp": 2 * spp, "max_bounces": 1, "pixel_area": 0, "rel_rmse_floor": floor}
-    row["scene"] = f"rbf-cornell {w}x{h}"
-    return row
+    return score_against_reference(time_frames(r, repeats=2 if quick else 3), scene, device, 16 if quick else 1024)
 
 
 # --- the papers' tables: runnable once their techniques land ------------------------------
