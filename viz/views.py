@@ -25,6 +25,16 @@ def _channels(values: np.ndarray, spatial: int = 3) -> list[np.ndarray]:
     return [values[c] for c in range(values.shape[0])]
 
 
+def _set_fields(data, fields: list[np.ndarray], name: str) -> None:
+    """Store each field as ``name[i]`` (when there are several) and their mean as ``name``,
+    the active scalars, in a pyvista cell- or point-data collection."""
+    for i, f in enumerate(fields):
+        if len(fields) > 1:
+            data[f"{name}[{i}]"] = np.ascontiguousarray(f, np.float32).ravel()
+    data[name] = np.mean([np.asarray(f, np.float32) for f in fields], axis=0).ravel()
+    data.active_scalars_name = name
+
+
 def volume_grid(values, bounds_min, bounds_max, name: str = "sigma_t") -> pv.ImageData:
     """Cell-centred samples over [bounds_min, bounds_max] as an ImageData with cell data.
 
@@ -35,11 +45,7 @@ def volume_grid(values, bounds_min, bounds_max, name: str = "sigma_t") -> pv.Ima
     d, h, w = fields[0].shape
     lo, hi = np.asarray(bounds_min, float), np.asarray(bounds_max, float)
     grid = pv.ImageData(dimensions=(w + 1, h + 1, d + 1), spacing=tuple((hi - lo) / (w, h, d)), origin=tuple(lo))
-    for i, f in enumerate(fields):
-        if len(fields) > 1:
-            grid.cell_data[f"{name}[{i}]"] = np.ascontiguousarray(f, np.float32).ravel()
-    grid.cell_data[name] = np.mean([np.asarray(f, np.float32) for f in fields], axis=0).ravel()
-    grid.cell_data.active_scalars_name = name
+    _set_fields(grid.cell_data, fields, name)
     return grid
 
 
@@ -50,11 +56,7 @@ def lattice_grid(values, bounds_min, bounds_max, name: str = "transmittance") ->
     lo, hi = np.asarray(bounds_min, float), np.asarray(bounds_max, float)
     spacing = tuple((hi - lo) / np.maximum(np.array((w, h, d)) - 1, 1))
     grid = pv.ImageData(dimensions=(w, h, d), spacing=spacing, origin=tuple(lo))
-    for i, f in enumerate(fields):
-        if len(fields) > 1:
-            grid.point_data[f"{name}[{i}]"] = np.ascontiguousarray(f, np.float32).ravel()
-    grid.point_data[name] = np.mean([np.asarray(f, np.float32) for f in fields], axis=0).ravel()
-    grid.point_data.active_scalars_name = name
+    _set_fields(grid.point_data, fields, name)
     return grid
 
 
