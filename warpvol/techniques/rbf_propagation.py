@@ -52,7 +52,7 @@ import warp as wp
 from .. import device as dev
 from ..geometry.camera import PinholeCamera, camera_ray, pinhole
 from ..geometry.mesh import Surfaces, surface_hit
-from ..media.grid import lattice_trilinear_vec3
+from ..media.grid import grid_trilinear
 from ..media.rbf import CUTOFF
 from ..media.volume import Media, MediaBuffers, ray_box, scene_bounds, sigma_t_at
 from ..physics.brdf import brdf_eval
@@ -97,26 +97,7 @@ def cell_index(v: Volume, i: int, j: int, k: int) -> int:
 @wp.func
 def volume_lookup(values: wp.array(dtype=wp.vec3), base: int, v: Volume, x: wp.vec3) -> wp.vec3:
     """Trilinear between cell centres, clamped at the outer half cells; 0 outside the grid."""
-    if x[0] < v.lo[0] or x[1] < v.lo[1] or x[2] < v.lo[2] or x[0] > v.hi[0] or x[1] > v.hi[1] or x[2] > v.hi[2]:
-        return wp.vec3(0.0)
-    g = wp.cw_div(x - v.lo, v.h) - wp.vec3(0.5)
-    fx = wp.clamp(g[0], 0.0, float(v.n[0] - 1))
-    fy = wp.clamp(g[1], 0.0, float(v.n[1] - 1))
-    fz = wp.clamp(g[2], 0.0, float(v.n[2] - 1))
-    x0 = wp.min(int(fx), wp.max(v.n[0] - 2, 0))
-    y0 = wp.min(int(fy), wp.max(v.n[1] - 2, 0))
-    z0 = wp.min(int(fz), wp.max(v.n[2] - 2, 0))
-    x1 = wp.min(x0 + 1, v.n[0] - 1)
-    y1 = wp.min(y0 + 1, v.n[1] - 1)
-    z1 = wp.min(z0 + 1, v.n[2] - 1)
-    tx = fx - float(x0)
-    ty = fy - float(y0)
-    tz = fz - float(z0)
-    c00 = values[base + cell_index(v, x0, y0, z0)] * (1.0 - tx) + values[base + cell_index(v, x1, y0, z0)] * tx
-    c10 = values[base + cell_index(v, x0, y1, z0)] * (1.0 - tx) + values[base + cell_index(v, x1, y1, z0)] * tx
-    c01 = values[base + cell_index(v, x0, y0, z1)] * (1.0 - tx) + values[base + cell_index(v, x1, y0, z1)] * tx
-    c11 = values[base + cell_index(v, x0, y1, z1)] * (1.0 - tx) + values[base + cell_index(v, x1, y1, z1)] * tx
-    return (c00 * (1.0 - ty) + c10 * ty) * (1.0 - tz) + (c01 * (1.0 - ty) + c11 * ty) * tz
+    return grid_trilinear(values, base, v.n, v.lo, v.hi, x)
 
 
 @wp.kernel
