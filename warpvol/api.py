@@ -52,6 +52,11 @@ class Renderer:
         return self._technique.scene
 
     @property
+    def technique(self):
+        """The technique object, for its own state (e.g. an iteration's history)."""
+        return self._technique
+
+    @property
     def settings(self) -> dict:
         return dict(self._technique.settings)
 

@@ -55,11 +55,12 @@ def threads() -> int:
 MIN_SPLIT = 32768  # threads below which a CPU launch is not split (handing out chunks costs ~1 ms)
 
 
-def launch(kernel, dim: int, inputs: list, device: str, split: bool = True):
-    """Launch ``kernel`` over ``dim`` threads; its first argument is the index offset."""
+def launch(kernel, dim: int, inputs: list, device: str, split: bool = True, min_split: int | None = None):
+    """Launch ``kernel`` over ``dim`` threads; its first argument is the index offset.
+    ``min_split`` overrides ``MIN_SPLIT`` for kernels whose threads each do much work."""
     global _pool
     n = threads() if split and str(device) == "cpu" else 1
-    if n <= 1 or dim < MIN_SPLIT:  # small launches cost less than handing them to threads
+    if n <= 1 or dim < (MIN_SPLIT if min_split is None else min_split):  # small launches cost less than handing them to threads
         wp.launch(kernel, dim=dim, inputs=[0, *inputs], device=device)
         return
     if _pool is None or _pool._max_workers != n:

@@ -65,6 +65,8 @@ class Stage(NamedTuple):
     ``run`` computes the stage's outputs and keeps them on the technique. ``reads`` names
     scene parts (``PARTS``), ``settings`` the settings it reads, ``after`` the earlier
     stages whose outputs it uses. ``needed=False`` when the scene does not call for it.
+    ``settled=False`` makes it run even with unchanged inputs: an iterative solver whose
+    state has not converged yet.
     """
 
     name: str
@@ -73,6 +75,7 @@ class Stage(NamedTuple):
     settings: tuple[str, ...] = ()
     after: tuple[str, ...] = ()
     needed: bool = True
+    settled: bool = True
 
 
 class StageRun(NamedTuple):
@@ -210,7 +213,7 @@ class Pipeline:
                 continue
             key = (tuple(map(versions.__getitem__, stage.reads)), tuple(map(settings.__getitem__, stage.settings)),
                    tuple(map(runs.__getitem__, stage.after)))
-            if keys.get(stage.name) == key:
+            if keys.get(stage.name) == key and stage.settled:
                 out[stage.name] = StageRun("cached", 0.0)
                 continue
             t0 = time.perf_counter()

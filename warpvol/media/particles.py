@@ -31,3 +31,16 @@ def particle_majorant(positions: np.ndarray, radius: float, n: int = 12) -> floa
     for s in range(0, len(positions), 2048):
         count += np.sum(box_distance2(lo, hi, positions[s : s + 2048].astype(np.float64)) <= radius * radius, axis=1)
     return float(count.max())
+
+
+@wp.func
+def sphere_chord(o: wp.vec3, d: wp.vec3, t1: float, c: wp.vec3, r: float) -> float:
+    """Length of the part of the segment o + t d (unit d, 0 <= t <= t1) inside the sphere
+    (c, r): the sphere's share of the optical depth is sigma_t times this."""
+    oc = c - o
+    b = wp.dot(oc, d)
+    h2 = r * r - (wp.dot(oc, oc) - b * b)
+    if h2 <= 0.0:
+        return 0.0
+    h = wp.sqrt(h2)
+    return wp.max(wp.min(b + h, t1) - wp.max(b - h, 0.0), 0.0)

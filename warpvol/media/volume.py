@@ -12,8 +12,7 @@ import numpy as np
 import warp as wp
 
 from ..physics.constants import INF
-from ..physics.phase import KINDS as PHASE_KINDS
-from ..physics.phase import Phase, phase_eval, tabulate
+from ..physics.phase import Phase, phase_eval, phase_struct
 from ..physics.transmittance import transmittance_rgb
 from ..scene.model import GridMedium, HomogeneousMedium, ParticleMedium, RBFMedium, Scene
 from .grid import grid_majorant, grid_trilinear
@@ -222,14 +221,9 @@ class MediaBuffers:
         n_grid = n_points = n_table = 0
         point_media = []
         for m in scene.media:
-            ph = Phase()
-            ph.kind = PHASE_KINDS[m.phase.type]
-            ph.g = m.phase.g
-            ph.offset, ph.n = n_table, 0
-            if m.phase.values is not None:
-                values = tabulate(m.phase.values)
+            ph, values = phase_struct(m.phase, n_table)
+            if len(values):
                 tables.append(values)
-                ph.n = len(values)
                 n_table += len(values)
             phases.append(ph)
             albedo.append(m.albedo)

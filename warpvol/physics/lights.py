@@ -57,3 +57,44 @@ def light_incident(light: Light, x: wp.vec3):
     if light.kind == SPOT:
         e = e * spot_falloff(light, wp.dot(-wi, light.direction))
     return wi, dist, e
+
+
+@wp.func
+def ball_mean_inverse_square(r: float, d: float) -> float:
+    """Mean of 1/|x - s|^2 over a ball of radius r whose centre lies d from s: the mean
+    irradiance per unit intensity that a point light at s delivers to a spherical particle.
+
+    3/(4 r^3) [(r^2 - d^2)/d ln((r + d)/|r - d|) + 2 r], from shells around the centre
+    (each averages ln((rho + d)/|rho - d|)/(2 rho d)). Bounded where 1/d^2 is not: 3/r^2 at
+    the centre, 3/(2 r^2) on the surface, 1/d^2 (1 + r^2/(5 d^2)) far away. Series at both
+    ends avoid the cancellation of the closed form in float32."""
+    if r <= 0.0:
+        return 1.0 / wp.max(d * d, 1.0e-30)
+    x = d / r
+    if x < 1.0e-3:
+        return 3.0 / (r * r) * (1.0 - x * x / 3.0)
+    if x > 8.0:
+        y2 = 1.0 / (x * x)
+        return 1.0 / (d * d) * (1.0 + y2 / 5.0 + 3.0 * y2 * y2 / 35.0)
+    if wp.abs(x - 1.0) < 1.0e-6:
+        return 1.5 / (r * r)
+    return 0.75 / (r * r * r) * ((r * r - d * d) / d * wp.log((r + d) / wp.abs(r - d)) + 2.0 * r)
+
+
+@wp.func
+def particle_incident(light: Light, x: wp.vec3, r: float):
+    """Returns (w, dist, E) for a spherical particle of radius r centred at x: the direction
+    light travels on arrival (zero when a point light sits at the centre, where it arrives
+    from every side), the distance to the light (INF for directional) and the irradiance
+    averaged over the particle's volume (``ball_mean_inverse_square``), finite everywhere."""
+    if light.kind == DIRECTIONAL:
+        return light.direction, INF, light.strength
+    to = x - light.position
+    d = wp.length(to)
+    w = wp.vec3(0.0)
+    falloff = float(1.0)
+    if d > 1.0e-6 * r:
+        w = to / d
+        if light.kind == SPOT:
+            falloff = spot_falloff(light, wp.dot(w, light.direction))
+    return w, d, light.strength * (ball_mean_inverse_square(r, d) * falloff)

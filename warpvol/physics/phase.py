@@ -181,3 +181,15 @@ def tabulate(values: np.ndarray) -> np.ndarray:
     h = 2.0 / (v.size - 1)
     integral = 2.0 * np.pi * h * (v.sum() - 0.5 * (v[0] + v[-1]))
     return (v / integral).astype(np.float32)
+
+
+def phase_struct(phase, offset: int = 0) -> tuple[Phase, np.ndarray]:
+    """A scene ``Phase`` as the kernel struct and its table (empty unless tabulated), the
+    table placed at ``offset`` of a shared table array."""
+    ph = Phase()
+    ph.kind, ph.g, ph.offset, ph.n = KINDS[phase.type], float(phase.g), offset, 0
+    table = np.zeros(0, np.float32)
+    if phase.values is not None:
+        table = tabulate(phase.values)
+        ph.n = len(table)
+    return ph, table

@@ -1,7 +1,7 @@
 """One module per technique, each a ``Technique`` subclass exported as ``TECHNIQUE``."""
 
-from . import light_shafts, raymarch, rbf_propagation, reference
+from . import illumination_network, light_shafts, raymarch, rbf_propagation, reference
 
-TECHNIQUES = {m.TECHNIQUE.NAME: m.TECHNIQUE for m in (reference, raymarch, light_shafts, rbf_propagation)}
+TECHNIQUES = {m.TECHNIQUE.NAME: m.TECHNIQUE for m in (reference, raymarch, light_shafts, rbf_propagation, illumination_network)}
 
 __all__ = ["TECHNIQUES"]

@@ -58,8 +58,7 @@ from ..media.volume import Media, MediaBuffers, ray_box, scene_bounds, sigma_t_a
 from ..physics.brdf import brdf_eval
 from ..physics.constants import INF
 from ..physics.lights import DIRECTIONAL, Light, light_incident
-from ..physics.phase import KINDS as PHASE_KINDS
-from ..physics.phase import Phase, phase_eval, tabulate
+from ..physics.phase import Phase, phase_eval, phase_struct
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Setting, Stage, Technique
 from ..upload import SceneUploads
@@ -377,11 +376,8 @@ class RBFPropagation(Technique):
         albedo = wp.vec3(*medium.albedo) if medium is not None else wp.vec3(0.0)
         phase, table = Phase(), np.zeros(1, np.float32)
         if medium is not None:  # the first medium's
-            phase.kind, phase.g, phase.offset = PHASE_KINDS[medium.phase.type], medium.phase.g, 0
-            if medium.phase.values is not None:
-                table = tabulate(medium.phase.values).astype(np.float32)
-                phase.n = len(table)
-        phase_table = wp.array(table, dtype=float, device=self.device)
+            phase, table = phase_struct(medium.phase)
+        phase_table = wp.array(table if len(table) else np.zeros(1, np.float32), dtype=float, device=self.device)
         dev.launch(march_volumes, npix, [pinhole(cam), u.surfaces, u.lights, self.ev, self.opv, self.volume, albedo,
                                          phase, phase_table, self.settings["steps"], wp.vec3(*scene.background),
                                          self.image], self.device)

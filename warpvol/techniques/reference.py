@@ -9,7 +9,9 @@ Per camera sample it follows a path through media and off surfaces:
   a point or spot light (Kulla & Fajardo 2012), whose pdf cancels the 1/d^2 of a light
   inside the medium, and exponential sampling of the majorant. Transmittance toward the
   camera and the light is exact in homogeneous media and ratio-tracked (Novak et al.
-  2014) in heterogeneous ones; surfaces occlude through a ``wp.Mesh`` query.
+  2014) in heterogeneous ones; surfaces occlude through a ``wp.Mesh`` query. A directional
+  light has no equiangular strategy; its sample is the segment's first real collision
+  found by delta tracking, whose weight stays bounded however loose the majorant is.
 * Lambertian + normalised Phong surfaces with direct light and cosine-sampled bounces;
   escaping rays see the background.
 * ``max_bounces`` counts scattering events (volume or surface): 1 is single scattering,
@@ -103,7 +105,25 @@ def segment_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), o: wp.v
                 pdf_m = mu * wp.exp(-mu * (t - ta))
                 w = pdf_e * pdf_e / (pdf_e * pdf_e + pdf_m * pdf_m)
                 L += scatter_sample(m, s, light, o, d, ta, t, c, wp.rand_init(wp.randi(rng))) * (w / pdf_e)
-        if mu > 0.0:
+        if mu > 0.0 and not point_like:
+            # a directional light has no equiangular strategy to share the segment with, and
+            # majorant sampling alone weighs a sample by e^(mu t): unbounded where a loose
+            # majorant meets sparse media (particle clouds). Delta tracking to a real
+            # collision has pdf sigma_t T, so its estimate is sigma_s p E T_l / sigma_t.
+            t = ta
+            while True:
+                t = t - wp.log(1.0 - wp.randf(rng)) / mu
+                if t >= tb:
+                    break
+                x = o + t * d
+                sig = sigma_t_at(m, x, False)[c]
+                if wp.randf(rng) * mu < sig:
+                    wi, dist, e = light_incident(light, x)
+                    fs = in_scatter_at(m, x, wp.dot(d, wi)) / sig
+                    tl = light_transmittance(m, s, x, wi, dist, c, wp.rand_init(wp.randi(rng)), 0)
+                    L += wp.cw_mul(wp.cw_mul(fs, e), tl)
+                    break
+        elif mu > 0.0:
             t = ta - wp.log(1.0 - wp.randf(rng)) / mu
             if t < tb:
                 pdf_m = mu * wp.exp(-mu * (t - ta))
