@@ -53,7 +53,7 @@ import warp as wp
 from .. import device as dev
 from ..geometry.camera import PinholeCamera, pinhole
 from ..media.particles import sphere_chord
-from ..physics.constants import INV_4PI
+from ..physics.constants import INV_4PI, PI
 from ..physics.lights import Light, particle_incident
 from ..physics.phase import Phase, orthonormal_basis, phase_eval, phase_struct
 from ..physics.sphere import fibonacci_directions
@@ -232,19 +232,25 @@ def scatter_matmul(offset: int, I: wp.array2d(dtype=Any), P: wp.array2d(dtype=ve
 def gather_update(offset: int, V: wp.array(dtype=int), alpha: wp.array(dtype=wp.vec3), albedo: wp.array(dtype=wp.vec3),
                   E: wp.array2d(dtype=Any), I: wp.array2d(dtype=Any), S: wp.array2d(dtype=float), sky: wp.vec3,
                   D: int, out: wp.array2d(dtype=Any)):
-    """The paper's update for (p, i) from the upstream particle vp = V[p, i]; sky if none."""
+    """The paper's update of I[p, i] from the upstream particle vp = V[p, i] (sky if none),
+    for 16 directions i of particle p per thread."""
     tid = wp.tid() + offset
     n = albedo.shape[0]
-    p = tid / D
-    i = tid % D
-    vp = V[tid]
-    for c in range(3):
-        v = sky[c]
-        if vp >= 0:
-            a = alpha[vp * D + i][c]
-            r = c * n + vp
-            v = (1.0 - a) * float(I[r, i]) + float(E[r, i]) + a * albedo[vp][c] * S[r, i]
-        out[c * n + p, i] = out.dtype(v)
+    blocks = (D + 15) / 16
+    p = tid / blocks
+    i0 = (tid % blocks) * 16
+    for i in range(i0, wp.min(i0 + 16, D)):
+        vp = V[p * D + i]
+        if vp < 0:
+            for c in range(3):
+                out[c * n + p, i] = out.dtype(sky[c])
+        else:
+            a = alpha[vp * D + i]
+            al = albedo[vp]
+            for c in range(3):
+                r = c * n + vp
+                v = (1.0 - a[c]) * float(I[r, i]) + float(E[r, i]) + a[c] * al[c] * S[r, i]
+                out[c * n + p, i] = out.dtype(v)
 
 
 @wp.kernel
@@ -270,18 +276,26 @@ def rescale(offset: int, I: wp.array2d(dtype=Any), factor: float):
 def outgoing_radiance(offset: int, pos: wp.array(dtype=wp.vec3), eye: wp.vec3, dirs: wp.array(dtype=wp.vec3),
                       I: wp.array2d(dtype=Any), direct: wp.array(dtype=wp.vec3), travel: wp.array(dtype=wp.vec3),
                       n_lights: int, albedo: wp.array(dtype=wp.vec3), ph: Phase, table: wp.array(dtype=float),
-                      weights: wp.array(dtype=float), scale: float, out: wp.array(dtype=wp.vec3)):
-    """a (sum_d I[p, d] p(w_d . w_eye) weight_d + sum_l p(w_l . w_eye) E_l T_l): the source
-    radiance of particle p toward the eye (weight_d = 4 pi / D, or the normalised weights)."""
+                      normalise: int, scale: float, out: wp.array(dtype=wp.vec3)):
+    """a (sum_d I[p, d] p(w_d . w_eye) 4 pi / D + sum_l p(w_l . w_eye) E_l T_l): the source
+    radiance of particle p toward the eye; ``normalise``: the D weights sum to 1 instead."""
     p = wp.tid() + offset
     n = pos.shape[0]
+    D = dirs.shape[0]
     to_eye = eye - pos[p]
-    w = wp.normalize(to_eye) if wp.length_sq(to_eye) > 0.0 else wp.vec3(0.0, 0.0, 1.0)
+    w = wp.vec3(0.0, 0.0, 1.0)
+    if wp.length_sq(to_eye) > 0.0:
+        w = wp.normalize(to_eye)
     s = wp.vec3(0.0)
-    for d in range(dirs.shape[0]):
-        f = phase_eval(ph, table, wp.dot(dirs[d], w)) * weights[d]
+    total = float(0.0)
+    for d in range(D):
+        f = phase_eval(ph, table, wp.dot(dirs[d], w))
+        total += f
         s += f * wp.vec3(float(I[p, d]), float(I[n + p, d]), float(I[2 * n + p, d]))
-    s = s * scale
+    norm = 4.0 * PI / float(D)
+    if normalise != 0 and total > 0.0:
+        norm = 1.0 / total
+    s = s * (scale * norm)
     for l in range(n_lights):
         s += phase_toward(ph, table, travel[p * n_lights + l], w) * direct[p * n_lights + l]
     out[p] = wp.cw_mul(albedo[p], s)
@@ -507,11 +521,8 @@ class IlluminationNetwork(Technique):
         if self.settings["phase_norm"]:
             sums = P[:D, :D].sum(0)
             P[:D, :D] /= np.where(sums > 0, sums, 1.0)
-            weights = np.full(D, 4.0 * np.pi / D)  # for the camera direction, not a column of P
         else:
             P *= 4.0 * np.pi / D
-            weights = np.full(D, 4.0 * np.pi / D)
-        self.phase_weights = wp.array(weights.astype(np.float32), dtype=float, device=self.device)
         self.P = wp.array(P.astype(np.float32).reshape(Dp, Dp // 16, 16), dtype=vec16, device=self.device)
 
     def _direct(self):
@@ -567,7 +578,7 @@ class IlluminationNetwork(Technique):
                 S = self._S = wp.empty((self.rows, self.Dp), dtype=float, device=device)
             dev.launch(scatter_matmul, self.rows // ROWS * (self.Dp // 16), [self.I, self.P, S], device, min_split=64)
             sky = wp.vec3(*(np.asarray(self.scene.background, np.float64) / self.scale))
-            dev.launch(gather_update, n * D, [self.V, self.alpha, self.albedo, self.E, self.I, S, sky, D, self.I_next],
+            dev.launch(gather_update, n * (-(-D // 16)), [self.V, self.alpha, self.albedo, self.E, self.I, S, sky, D, self.I_next],
                        device)
         if measure is None:
             measure = self.settings["tolerance"] > 0.0
@@ -595,7 +606,8 @@ class IlluminationNetwork(Technique):
         if n:
             dev.launch(outgoing_radiance, n, [self.pos, pc.origin, self.dirs, self.I, self.direct, self.travel,
                                               len(self.scene.lights), self.albedo, self.phase, self.table,
-                                              self.phase_weights, self.scale, self.radiance], device, min_split=512)
+                                              self.settings["phase_norm"], self.scale, self.radiance], device,
+                       min_split=512)
             rect = wp.empty(n, dtype=wp.vec4i, device=device)
             count = wp.empty(n, dtype=int, device=device)
             dev.launch(splat_bounds, n, [pc, self.pos, self.radius, tx, ty, rect, count], device)
