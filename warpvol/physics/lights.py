@@ -66,16 +66,21 @@ def ball_mean_inverse_square(r: float, d: float) -> float:
 
     3/(4 r^3) [(r^2 - d^2)/d ln((r + d)/|r - d|) + 2 r], from shells around the centre
     (each averages ln((rho + d)/|rho - d|)/(2 rho d)). Bounded where 1/d^2 is not: 3/r^2 at
-    the centre, 3/(2 r^2) on the surface, 1/d^2 (1 + r^2/(5 d^2)) far away. Series at both
-    ends avoid the cancellation of the closed form in float32."""
+    the centre, 3/(2 r^2) on the surface, ~1/d^2 far away. The closed form cancels in
+    float32 away from the surface, so with x = d/r the series
+    3/r^2 (1 - sum_k x^2k/(4k^2 - 1)) (x < 1/2) and 3/r^2 sum_k x^-2k/(4k^2 - 1) (x > 2),
+    k >= 1, summed to 12 terms (remainder < 4^-12), are used there."""
     if r <= 0.0:
         return 1.0 / wp.max(d * d, 1.0e-30)
     x = d / r
-    if x < 1.0e-3:
-        return 3.0 / (r * r) * (1.0 - x * x / 3.0)
-    if x > 8.0:
-        y2 = 1.0 / (x * x)
-        return 1.0 / (d * d) * (1.0 + y2 / 5.0 + 3.0 * y2 * y2 / 35.0)
+    if x < 0.5 or x > 2.0:
+        y2 = wp.where(x < 0.5, x * x, 1.0 / (x * x))
+        term = float(1.0)
+        acc = float(0.0)
+        for k in range(1, 13):
+            term *= y2
+            acc += term / float(4 * k * k - 1)
+        return 3.0 / (r * r) * wp.where(x < 0.5, 1.0 - acc, acc)
     if wp.abs(x - 1.0) < 1.0e-6:
         return 1.5 / (r * r)
     return 0.75 / (r * r * r) * ((r * r - d * d) / d * wp.log((r + d) / wp.abs(r - d)) + 2.0 * r)
