@@ -250,6 +250,15 @@ def run_sweep(sweep, device: str, out: Path, quick: bool = False, executor=None,
     order = {row_key(p): i for i, p in enumerate(sweep.points(quick))}
 
     def keep(row):
+        images = row.pop("images", None)
+        if images:  # pictures a row shows (name -> H x W x 3), written beside the JSON
+            slug = "-".join(f"{k}{v}" for k, v in row["params"].items())
+            row["images"] = {}
+            path.parent.mkdir(parents=True, exist_ok=True)
+            for name, image in images.items():
+                file = f"{path.stem}-{slug}-{name}.png"
+                wv.save_image(str(path.parent / file), image)
+                row["images"][name] = file
         rows.append(row)
         rows.sort(key=lambda r: order.get(row_key(r["params"]), len(order)))
         write_rows(path, sweep, rows, command)

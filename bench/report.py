@@ -176,7 +176,38 @@ def scaling_section(rows: list[dict], png: Path) -> list[str]:
     return lines
 
 
-SECTIONS = {"accuracy": accuracy_section, "scaling": scaling_section, "rules": rules_section, "paper": paper_section, "overhead": overhead_section,
+def convergence_section(rows: list[dict], png: Path) -> list[str]:
+    lines = ["| parameters | iteration | change per iteration | error of I to the converged | image error to the "
+             "converged |", "|---|---|---|---|---|"]
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    for r in rows:
+        change, err = r["change"], r["network_error"]
+        for k in sorted(int(k) for k in r["image_error"]):
+            lines.append(f"| {_params(r)} | {k} | {change[k - 1]:.2e} | "
+                         f"{err[min(k, len(err)) - 1]:.2e} | {r['image_error'][str(k)]:.2e} |")
+        x = np.arange(1, len(change) + 1)
+        ax.semilogy(x, change, "-", label=f"{_params(r)}: change per iteration")
+        ax.semilogy(np.arange(1, len(err) + 1), err, "--", label=f"{_params(r)}: error of I to converged")
+    ax.set(xlabel="iterations from zero", ylabel="relative L2", title=rows[0]["sweep"])
+    _save(fig, ax, png)
+    for r in rows:
+        if r.get("images"):
+            lines += ["", f"{_params(r)}: " + " ".join(f"![{k} iterations]({f})" for k, f in r["images"].items()),
+                      "", "Left to right: " + ", ".join(f"{k} iterations" for k in r["images"]) + "."]
+    return lines
+
+
+def bound_section(rows: list[dict], png: Path | None) -> list[str]:
+    lines = ["| parameters | eps: single-scattering RMSE | total: converged RMSE | eps / (1 − a) | holds | "
+             "reference noise (relative, ss / ms) |", "|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {_params(r)} | {r['eps_rmse']:.4g} | {r['total_rmse']:.4g} | {r['bound']:.4g} | "
+                     f"{'yes' if r['holds'] else 'no'} | {r['reference_floor'][0]:.4f} / {r['reference_floor'][1]:.4f} |")
+    return lines
+
+
+SECTIONS = {"convergence": convergence_section, "bound": bound_section, "accuracy": accuracy_section, "scaling": scaling_section, "rules": rules_section, "paper": paper_section, "overhead": overhead_section,
             "edges": edges_section}
 
 

@@ -340,6 +340,177 @@ def _rbf_accuracy(params: dict, device: str, quick: bool) -> dict:
     return score_against_reference(time_frames(r, repeats=2 if quick else 3), scene, device, 16 if quick else 1024)
 
 
+# --- illumination networks (papers/000) -----------------------------------------------------
+
+SUN2 = {"type": "directional", "direction": [0.6, 0.8, -0.3], "irradiance": 1.5}  # the paper's second, bottom-right
+
+
+def _network_scene(quick: bool, n: int = 1024, width: int = 512, albedo: float = 0.9, sky: bool = True,
+                   seed: int = 1):
+    """particle-cloud as in the paper's results: ``n`` particles (radius scaled by n^(-1/3)
+    so the cloud's volume stays put), albedo 0.9, g = 0, 2 R tau = 20 expected collisions
+    across it, two directional lights and sky."""
+    from warpvol.scene.procedural import particle_cloud
+
+    d = particle_cloud()
+    if quick:
+        n, width = min(n, 128), min(width, 32)
+    radius = 0.12 * (1024 / n) ** (1 / 3)
+    R = 1.2 + radius
+    sigma = 10.0 * R**2 / (n * radius**3)  # mean tau over the ball = n sigma r^3 / R^3 = 20 / (2 R)
+    d["camera"].update(width=width, height=width)
+    d["lights"] = [d["lights"][0], SUN2]
+    d["background"] = d["background"] if sky else [0.0, 0.0, 0.0]
+    d["media"][0].update(generator={"kind": "cloud", "count": n, "seed": seed, "extent": 1.2}, radius=radius,
+                         sigma_t=sigma, albedo=albedo, phase={"type": "hg", "g": 0.0})
+    return wv.load_scene(d)
+
+
+def _network_table_grid(quick: bool) -> list[dict]:
+    return [{"particles": 1024, "directions": 128}, {"particles": 512, "directions": 128}]
+
+
+def _network_frame(params: dict, device: str, quick: bool) -> dict:
+    """A frame as in the paper: lights and camera moving, one iteration, 512x512 splat; and
+    the cost of one iteration alone (median of 20) with its multiply-add rate."""
+    import time
+
+    import warp as wp
+
+    n, D = params["particles"], params["directions"]
+    scene = _network_scene(quick, n, params.get("width", 512))
+    r = wv.Renderer(scene, technique="illumination_network", device=device, directions=D,
+                    window=params.get("window", 0), iterations=1, tolerance=0.0)
+    row = time_frames(r, repeats=2 if quick else 10, invalidate=("camera", "lights"))
+    t = r.technique
+    times = []
+    for _ in range(3 if quick else 20):
+        t0 = time.perf_counter()
+        t.step(measure=False)
+        wp.synchronize_device(t.device)
+        times.append(time.perf_counter() - t0)
+    it = sorted(times)[len(times) // 2]
+    builds = []
+    for _ in range(1 if quick else 3):
+        r.touch("medium")
+        builds.append(r.render().stages["network"].ms)
+    row.update(iteration_ms=it * 1000.0, gflops=2.0 * 3 * n * D * D / it / 1e9, window=t.M,
+               network_ms=sorted(builds)[len(builds) // 2],
+               scene=f"{n} particles, {scene.camera.width}x{scene.camera.height}, 2 suns + sky")
+    return row
+
+
+def _network_sweep_grid(quick: bool) -> list[dict]:
+    if quick:
+        return [{"particles": 64, "directions": 16}, {"particles": 128, "directions": 32}]
+    return ([{"particles": n, "directions": 128} for n in (256, 512, 1024, 2048, 4096, 8192)]
+            + [{"particles": 1024, "directions": d} for d in (32, 64, 256, 512)]
+            + [{"particles": 1024, "directions": 128, "window": m} for m in (32, 128)])
+
+
+CONVERGENCE_SHOWN = (20, 40, 60, 80)
+
+
+def _convergence_grid(quick: bool) -> list[dict]:
+    return [{"albedo": a} for a in ((0.9,) if quick else (0.9, 0.99))]
+
+
+def _convergence(params: dict, device: str, quick: bool) -> dict:
+    """Figure 6: iterations from zero on the paper's cloud (1024 particles, 128 directions):
+    the relative L2 change per iteration and the error to the converged solution, of the
+    network I and of the image. Saves the images at 20/40/60/80 iterations."""
+    import numpy as np
+
+    iters = 20 if quick else 300
+    scene = _network_scene(quick, 1024, 256, albedo=params["albedo"])
+    r = wv.Renderer(scene, technique="illumination_network", device=device, iterations=0)
+    r.render()
+    t = r.technique
+    nets, images, changes = [], [], []
+    for k in range(iters):
+        changes.append(t.step(measure=True))
+        if k + 1 <= 100 or k + 1 == iters:
+            nets.append(t.radiance_network())
+    r.update(settings={"iterations": 0})
+    converged = t.radiance_network()
+    shown = {}
+    for k in CONVERGENCE_SHOWN + (iters,):
+        if k <= iters:
+            t.I.assign(wp_array_like(t.I, nets[min(k, len(nets)) - 1], t))
+            r.touch("camera")
+            shown[k] = r.render().image.copy()
+    final = shown[iters]
+    net_err = [float(np.sqrt(((x - converged) ** 2).sum() / (converged**2).sum())) for x in nets]
+    img_err = {k: wv.relative_rmse(v, final) for k, v in shown.items()}
+    return {"first_frame_ms": 0.0, "median_ms": float("nan"), "spread_ms": [0, 0], "frames": iters, "stages": {},
+            "change": changes, "network_error": net_err, "image_error": {str(k): v for k, v in img_err.items()},
+            "images": {str(k): v for k, v in shown.items() if k in CONVERGENCE_SHOWN}}
+
+
+def wp_array_like(I, radiance, t):
+    """The network ``radiance`` (N, D, 3) in ``I``'s storage layout (planes, padded, scaled)."""
+    import numpy as np
+
+    host = np.zeros(I.shape, np.float32)
+    n, D = radiance.shape[:2]
+    host[: 3 * n, :D] = np.moveaxis(radiance, -1, 0).reshape(3 * n, D) / t.scale
+    return host
+
+
+def _network_accuracy_grid(quick: bool) -> list[dict]:
+    if quick:
+        return [{"particles": 64, "directions": 16, "window": 0}, {"particles": 64, "directions": 32, "window": 0}]
+    return ([{"particles": n, "directions": d, "window": 0} for n in (256, 1024) for d in (16, 32, 64, 128, 256)]
+            + [{"particles": 1024, "directions": 128, "window": m} for m in (8, 16, 48, 96)])
+
+
+def _network_accuracy(params: dict, device: str, quick: bool) -> dict:
+    """The converged image against the multiple-scattering reference on the same particles
+    (64x64 at pixel centres), the window from the paper's rule (window = 0) or given."""
+    w = 24 if quick else 64
+    scene = _network_scene(quick, params["particles"], w)
+    r = wv.Renderer(scene, technique="illumination_network", device=device, iterations=2000, tolerance=1e-5,
+                    directions=params["directions"], window=params["window"])
+    row = time_frames(r, repeats=1 if quick else 2, invalidate=("lights",))
+    row["window_used"] = r.technique.M
+    row["iterations_to_converge"] = len(r.technique.history)
+    ref, floor = reference_image(scene, device, spp=16 if quick else 256, max_bounces=-1, pixel_area=0)
+    row["rel_rmse"] = wv.relative_rmse(row["frame"].image, ref)
+    row["rel_rmse_corrected"] = max(row["rel_rmse"] ** 2 - floor**2, 0.0) ** 0.5
+    row["mean_ratio"] = float(row["frame"].image.mean() / ref.mean())
+    row["reference"] = {"spp": 2 * (16 if quick else 256), "max_bounces": -1, "pixel_area": 0,
+                        "rel_rmse_floor": floor}
+    row["scene"] = f"{params['particles']} particles {w}x{w}"
+    return row
+
+
+def _albedo_grid(quick: bool) -> list[dict]:
+    return [{"albedo": a} for a in ((0.5,) if quick else (0.5, 0.8, 0.95))]
+
+
+def _albedo_bound(params: dict, device: str, quick: bool) -> dict:
+    """The paper's claim that a step's error eps grows to at most eps / (1 - a) over the
+    iteration. Without sky (so zero iterations give exactly single scattering): eps is the
+    RMSE of the single-scattering image (iterations = 0) against the reference with one
+    scattering event, the total is the converged image's RMSE against the unlimited one."""
+    w, spp = (24, 16) if quick else (48, 256)
+    scene = _network_scene(quick, 256, w, albedo=params["albedo"], sky=False)
+    out = {}
+    for bounces, settings in ((1, {"iterations": 0}), (-1, {"iterations": 3000, "tolerance": 1e-6})):
+        r = wv.Renderer(scene, technique="illumination_network", device=device, directions=128, **settings)
+        image = r.render().image
+        ref, floor = reference_image(scene, device, spp=spp, max_bounces=bounces, pixel_area=0)
+        import numpy as np
+
+        out[bounces] = (float(np.sqrt(np.mean((image - ref) ** 2))), float(np.sqrt(np.mean(ref**2))), floor)
+    eps, total = out[1][0], out[-1][0]
+    a = params["albedo"]
+    return {"first_frame_ms": 0.0, "median_ms": float("nan"), "spread_ms": [0, 0], "frames": 1, "stages": {},
+            "eps_rmse": eps, "total_rmse": total, "bound": eps / (1 - a), "holds": bool(total <= eps / (1 - a)),
+            "ss_rms": out[1][1], "ms_rms": out[-1][1], "reference_floor": [out[1][2], out[-1][2]],
+            "scene": f"256 particles {w}x{w}, no sky, D = 128"}
+
+
 # --- the papers' tables: runnable once their techniques land ------------------------------
 
 def _row_fps(table: dict, params: dict):
@@ -387,8 +558,23 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
     Sweep("rbf-accuracy", "rbf_propagation: relative RMSE against the single-scattering reference vs ms per frame, "
           "over grid size and march steps, rbf-cornell 80x60",
           "rbf_propagation", "accuracy", _rbf_accuracy_grid, _rbf_accuracy, issue=5),
-    Sweep("illumination-network", "papers/000: 1024 and 512 particles at 128 directions, one iteration per frame",
-          "illumination_network", "paper", paper=("illumination_network",), figure=_row_fps, issue=6),
+    Sweep("illumination-network", "papers/000 section 4: 1024 and 512 particles at 128 directions, one iteration "
+          "per frame, lights and camera moving, 512x512 (direct light, emission, one iteration, splat)",
+          "illumination_network", "paper", _network_table_grid, _network_frame, paper=("illumination_network",),
+          figure=_row_fps, issue=6),
+    Sweep("illumination-network-sweep", "illumination_network over N (256..8192 particles) and D (32..512 "
+          "directions), window by the paper's rule unless given: frame, one iteration (with its multiply-add rate) "
+          "and the visibility-network build",
+          "illumination_network", "paper", _network_sweep_grid, _network_frame, issue=6),
+    Sweep("illumination-network-convergence", "papers/000 figure 6: change per iteration and error to the converged "
+          "solution, iterating from zero, 1024 particles, 128 directions, albedo 0.9 and 0.99",
+          "illumination_network", "convergence", _convergence_grid, _convergence, issue=6),
+    Sweep("illumination-network-accuracy", "illumination_network: converged image against the multiple-scattering "
+          "reference vs ms per frame (lights moving), over N, D and the window M, 64x64",
+          "illumination_network", "accuracy", _network_accuracy_grid, _network_accuracy, issue=6),
+    Sweep("illumination-network-albedo", "papers/000's bound: the error of one step eps grows to at most "
+          "eps / (1 - a); single- and multiple-scattering RMSE against the reference at albedo 0.5, 0.8, 0.95",
+          "illumination_network", "bound", _albedo_grid, _albedo_bound, issue=6),
     Sweep("depth-impostors", "papers/004: 8000 particles, blocks 0..1600",
           "depth_impostors", "paper", paper=("depth_impostors",), figure=_row_fps),
 ]}
