@@ -207,7 +207,22 @@ def bound_section(rows: list[dict], png: Path | None) -> list[str]:
     return lines
 
 
-SECTIONS = {"convergence": convergence_section, "bound": bound_section, "accuracy": accuracy_section, "scaling": scaling_section, "rules": rules_section, "paper": paper_section, "overhead": overhead_section,
+def animated_section(rows: list[dict], png: Path) -> list[str]:
+    lines = ["| parameters | frame ms (median) | network stage ms | mean error vs full rebuild (frames ≥ F/4) | "
+             "last frame's error |", "|---|---|---|---|---|"]
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    for r in rows:
+        lines.append(f"| {_params(r)} | {r['median_ms']:.1f} | {r['network_ms']:.2f} | {r['mean_error']:.4f} | "
+                     f"{r['final_error']:.4f} |")
+        if r["params"].get("refresh"):
+            ax.plot(np.arange(1, len(r["error_per_frame"]) + 1), r["error_per_frame"], label=_params(r))
+    ax.set(xlabel="frame", ylabel="relative RMSE vs full rebuild", title=rows[0]["sweep"])
+    _save(fig, ax, png)
+    return lines
+
+
+SECTIONS = {"animated": animated_section, "convergence": convergence_section, "bound": bound_section, "accuracy": accuracy_section, "scaling": scaling_section, "rules": rules_section, "paper": paper_section, "overhead": overhead_section,
             "edges": edges_section}
 
 

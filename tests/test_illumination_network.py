@@ -239,3 +239,32 @@ def test_one_iteration_per_frame_runs_until_settled(device):
 def test_rejects_scenes_it_cannot_render():
     with pytest.raises(wv.SettingsError, match="particle media only"):
         wv.Renderer("fog-box", "illumination_network", device="cpu")
+
+
+def test_refreshing_k_directions_a_frame_catches_up_with_a_full_rebuild(device):
+    """refresh = k re-peels k directions per medium change, round robin: after the cloud moves
+    once and stays, D / k more changes leave V and alpha equal to a full rebuild's."""
+    import dataclasses
+
+    D, k = 16, 4
+    scene = wv.load_scene(cloud(n=120))
+    jitter = np.random.default_rng(9).uniform(-0.05, 0.05, scene.media[0].positions.shape).astype(np.float32)
+    moved = dataclasses.replace(scene.media[0], positions=scene.media[0].positions + jitter)
+    lag = wv.Renderer(scene, "illumination_network", device=device, directions=D, window=8, refresh=k,
+                      iterations=0)
+    lag.render()
+    lag.update(medium=moved)
+    lag.render()
+    full = wv.Renderer(wv.load_scene(cloud(n=120)), "illumination_network", device=device, directions=D, window=8,
+                       iterations=0)
+    full.update(medium=moved)
+    full.render()
+    a, b = lag.arrays(), full.arrays()
+    stale = np.any(a["visibility"] != b["visibility"], axis=0)
+    assert stale.sum() == D - k  # only the first k directions are current
+    for _ in range(D // k - 1):
+        lag.update(medium=moved)
+        lag.render()
+    a = lag.arrays()
+    np.testing.assert_array_equal(a["visibility"], b["visibility"])
+    np.testing.assert_allclose(a["alpha"], b["alpha"], rtol=1e-6)

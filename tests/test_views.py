@@ -101,3 +101,22 @@ def test_light_shafts_arrays_and_their_view():
     img = p.screenshot(return_img=True)
     p.close()
     assert not_blank(img) > 0.02
+
+
+def test_illumination_network_view():
+    """Particles coloured by radiance and the edges of the direction nearest the sun: one
+    edge per particle that sees another upstream, drawn from its own arrays."""
+    r = wv.Renderer("particle-cloud", technique="illumination_network", device="cpu", directions=32,
+                    iterations=20)
+    r.render()
+    arrays = r.arrays(for_view=True)
+    d = arrays["view_direction"]
+    sun = np.array([-0.4, -1.0, -0.5]) / np.linalg.norm([-0.4, -1.0, -0.5])
+    assert arrays["directions"][d] @ sun == pytest.approx((arrays["directions"] @ sun).max())
+    edges = viz.network_mesh(arrays["positions"], arrays["visibility"], d, arrays["alpha"][..., 0])
+    assert edges.n_cells == int((arrays["visibility"][:, d] >= 0).sum()) > 0
+    p = pv.Plotter(off_screen=True, window_size=(200, 150))
+    viz.technique_actors(p, arrays)
+    img = p.screenshot(return_img=True)
+    p.close()
+    assert not_blank(img) > 0.02

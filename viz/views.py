@@ -244,6 +244,18 @@ def technique_actors(plotter: pv.Plotter, arrays: dict) -> pv.Plotter:
     elif "extinction" in arrays:
         plotter.add_volume(volume_grid(arrays["extinction"], *arrays["bounds"]), scalars="sigma_t", cmap="bone",
                            opacity="sigmoid", show_scalar_bar=False)
+    if "visibility" in arrays:  # illumination_network: particles by radiance, one direction's edges
+        pos = arrays["positions"]
+        cloud = pv.PolyData(np.asarray(pos, np.float32))
+        out = arrays.get("outgoing")
+        radiance = arrays["radiance"].mean(axis=1) if out is None else out
+        cloud.point_data["radiance"] = np.asarray(radiance, np.float32) @ np.float32([0.2126, 0.7152, 0.0722])
+        plotter.add_mesh(cloud, scalars="radiance", cmap="inferno", render_points_as_spheres=True, point_size=9,
+                         show_scalar_bar=True)
+        d = arrays.get("view_direction", 0)
+        edges = network_mesh(pos, arrays["visibility"], d, arrays["alpha"][..., 0])
+        if edges.n_cells:
+            plotter.add_mesh(edges, scalars="alpha", cmap="viridis", line_width=2, show_scalar_bar=False)
     if "lit_slice" in arrays:
         grid = slice_plane(arrays["lit_slice"], arrays["lit_slice_corners"])
         plotter.add_mesh(grid, scalars="radiance", cmap="inferno", opacity=0.85, show_scalar_bar=False,

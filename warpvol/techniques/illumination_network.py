@@ -13,6 +13,9 @@ directions, between particles that see each other along them. Stages:
   alpha = 1 - exp(-tau_vp |x_p - x_vp|.w_i), tau_vp = sigma_t times the number of spheres
   that contain vp's centre (the medium's extinction there). M follows the paper's rule
   D (R tau)^2 / pi >= M^2 with tau the cloud's mean extinction (``window = 0``).
+  Beyond the paper (its future work): for an animated cloud, ``refresh = k`` re-peels only
+  k directions per frame, round robin, and keeps the other directions' links from earlier
+  frames (positions, extinction and direct light are always current).
 * ``direct`` (reads the lights): each particle's irradiance from each light, averaged over
   its sphere (bounded for a light inside it), times the exact transmittance from its
   centre to the light through the union of spheres (chord lengths, overlaps add).
@@ -36,7 +39,8 @@ directions, between particles that see each other along them. Stages:
   camera direction, composited front to back over 16 x 16 pixel tiles (particles sorted
   by tile, then depth). A particle's footprint is its sphere's own opacity along the pixel
   ray, 1 - exp(-sigma_t chord): smooth, zero at the rim, and exact for the transmittance
-  of overlapping spheres. The background shows through.
+  of overlapping spheres. The background shows through. A pixel stops once its
+  transmittance falls below 1e-5 (what lies behind changes it by less than that fraction).
 
 ``half = 1`` stores I and E as float16 (as the paper does), scaled by a power of two so
 the largest source is at most 1: the iteration is a contraction of the sources, so no
@@ -69,6 +73,7 @@ SETTINGS = {
     "warm": Setting(1, 0, 1, "1: start from the previous solution when the lights change; 0: from zero"),
     "half": Setting(0, 0, 1, "1: store I and E as float16, as the paper does"),
     "phase_norm": Setting(0, 0, 1, "0: the paper's weights 4 pi / D; 1: each column of the phase matrix sums to 1"),
+    "refresh": Setting(0, 0, 4096, "when the medium changes, re-peel this many directions (round robin; 0: all)"),
 }
 
 TILE = 16  # pixels per side of a splatting tile
@@ -94,12 +99,14 @@ def particle_extinction(offset: int, grid: wp.uint64, pos: wp.array(dtype=wp.vec
 
 
 @wp.kernel
-def project_particles(offset: int, pos: wp.array(dtype=wp.vec3), dirs: wp.array(dtype=wp.vec3), centre: wp.vec3,
-                      R: float, M: int, keys: wp.array(dtype=wp.int64), values: wp.array(dtype=int)):
-    """Key (direction, pixel) << 32 | depth for particle p in direction i (thread i N + p)."""
+def project_particles(offset: int, pos: wp.array(dtype=wp.vec3), dirs: wp.array(dtype=wp.vec3),
+                      which: wp.array(dtype=int), centre: wp.vec3, R: float, M: int, keys: wp.array(dtype=wp.int64),
+                      values: wp.array(dtype=int)):
+    """Key (direction, pixel) << 32 | depth for particle p in direction i = which[j]
+    (thread j N + p)."""
     tid = wp.tid() + offset
     n = pos.shape[0]
-    i = tid / n
+    i = which[tid / n]
     p = tid % n
     w = dirs[i]
     e1, e2 = orthonormal_basis(w)
@@ -108,9 +115,20 @@ def project_particles(offset: int, pos: wp.array(dtype=wp.vec3), dirs: wp.array(
     u = wp.clamp(int(wp.floor((wp.dot(x, e1) + R) * scale)), 0, M - 1)
     v = wp.clamp(int(wp.floor((wp.dot(x, e2) + R) * scale)), 0, M - 1)
     depth = wp.clamp((wp.dot(x, w) + R) / (2.0 * R), 0.0, 1.0)
-    cell = wp.int64((i * M + v) * M + u)
+    cell = (wp.int64(i) * wp.int64(M) + wp.int64(v)) * wp.int64(M) + wp.int64(u)
     keys[tid] = cell * DEPTH_BITS * wp.int64(2) + wp.int64(depth * float(DEPTH_BITS - wp.int64(1)))
     values[tid] = p
+
+
+@wp.kernel
+def clear_directions(offset: int, which: wp.array(dtype=int), D: int, V: wp.array(dtype=int),
+                     alpha: wp.array(dtype=wp.vec3)):
+    """Forget the links of directions which[j] before they are peeled again (thread j N + p)."""
+    tid = wp.tid() + offset
+    n = V.shape[0] / D
+    k = (tid % n) * D + which[tid / n]
+    V[k] = -1
+    alpha[k] = wp.vec3(0.0)
 
 
 @wp.kernel
@@ -121,7 +139,7 @@ def link_network(offset: int, keys: wp.array(dtype=wp.int64), values: wp.array(d
     k = wp.tid() + offset
     D = dirs.shape[0]
     cell = keys[k] / (DEPTH_BITS * wp.int64(2))
-    i = int(cell / wp.int64(M * M))
+    i = int(cell / (wp.int64(M) * wp.int64(M)))
     p = values[k]
     vp = int(-1)
     if k > 0:
@@ -393,9 +411,13 @@ def composite(offset: int, cam: PinholeCamera, pos: wp.array(dtype=wp.vec3), rad
         c = sphere_chord(o, d, 1.0e30, pos[p], radius[p])
         if c > 0.0:
             s = sigma[p]
-            t = wp.vec3(wp.exp(-s[0] * c), wp.exp(-s[1] * c), wp.exp(-s[2] * c))
+            t = wp.vec3(wp.exp(-s[0] * c))
+            if s[1] != s[0] or s[2] != s[0]:
+                t = wp.vec3(t[0], wp.exp(-s[1] * c), wp.exp(-s[2] * c))
             L += wp.cw_mul(wp.cw_mul(T, wp.vec3(1.0) - t), radiance[p])
             T = wp.cw_mul(T, t)
+            if wp.max(T[0], wp.max(T[1], T[2])) < 1.0e-5:  # what lies behind adds < 1e-5 of it
+                break
     image[tid] = L + wp.cw_mul(T, background)
 
 
@@ -452,7 +474,8 @@ class IlluminationNetwork(Technique):
     def stages(self):
         lights = bool(self.scene.lights)
         return self.uploads.stages() + [
-            Stage("network", self._network, reads=("medium",), settings=("directions", "window", "half", "phase_norm")),
+            Stage("network", self._network, reads=("medium",),
+                  settings=("directions", "window", "half", "phase_norm", "refresh")),
             Stage("direct", self._direct, reads=("lights",), after=("network", "lights"), needed=lights),
             Stage("emission", self._emission, after=("network", "direct"), settings=("half",)),
             Stage("iterate", self._iterate, reads=("background",), settings=("iterations", "tolerance", "warm"),
@@ -461,7 +484,8 @@ class IlluminationNetwork(Technique):
         ]
 
     def _network(self):
-        """Particles to the device, per-particle extinction, phase matrix, and V with alpha."""
+        """Particles to the device, per-particle extinction, phase matrix, and V with alpha:
+        every direction, or with ``refresh = k`` and an unchanged layout the next k."""
         s, device = self.settings, self.device
         pos = np.concatenate([np.asarray(m.positions, np.float32).reshape(-1, 3) for m in self.scene.media])
         counts = [len(m.positions) for m in self.scene.media]
@@ -469,8 +493,12 @@ class IlluminationNetwork(Technique):
         radius = rep([m.radius for m in self.scene.media])
         sigma = rep([m.sigma_t for m in self.scene.media])
         albedo = rep([m.albedo for m in self.scene.media])
-        n = self._n = len(pos)
+        n = len(pos)
         D = s["directions"]
+        layout = (n, D, s["window"], s["half"], s["phase_norm"])
+        partial = bool(s["refresh"]) and getattr(self, "_layout", None) == layout
+        self._layout = layout
+        self._n = n
         self.D, self.Dp = D, _pad(D, 16)
         self.rows = _pad(3 * max(n, 1), ROWS)
         self.pos = wp.array(pos, dtype=wp.vec3, device=device)
@@ -481,24 +509,37 @@ class IlluminationNetwork(Technique):
         self.centre = 0.5 * (lo + hi)
         r_max = float(radius.max()) if n else 0.0
         self.R = float(np.sqrt(((pos - self.centre) ** 2).sum(1)).max()) + r_max if n else 1.0
-        # mean extinction of the bounding ball: total sigma_t volume / ball volume
-        tau_mean = float((sigma.mean(1) * radius**3).sum()) / self.R**3 if n else 0.0
-        self.M = s["window"] or window_rule(D, self.R, tau_mean)
-        self.dirs = wp.array(fibonacci_directions(D), dtype=wp.vec3, device=device)
-        self.V = wp.full(n * D, -1, dtype=int, device=device)
-        self.alpha = wp.zeros(n * D, dtype=wp.vec3, device=device)
+        if partial:  # the paper's future work: re-peel k directions a frame, round robin
+            which = (self._next_direction + np.arange(min(s["refresh"], D))) % D
+            self._next_direction = int((which[-1] + 1) % D)
+        else:
+            # mean extinction of the bounding ball: total sigma_t volume / ball volume
+            tau_mean = float((sigma.mean(1) * radius**3).sum()) / self.R**3 if n else 0.0
+            self.M = s["window"] or window_rule(D, self.R, tau_mean)
+            self.dirs = wp.array(fibonacci_directions(D), dtype=wp.vec3, device=device)
+            self.V = wp.full(n * D, -1, dtype=int, device=device)
+            self.alpha = wp.zeros(n * D, dtype=wp.vec3, device=device)
+            which = np.arange(D)
+            self._next_direction = 0
         self.tau = wp.zeros(n, dtype=wp.vec3, device=device)
         if n:
             grid = wp.HashGrid(*([max(1, min(128, int(np.ceil(self.R / max(r_max, 1e-6)))))] * 3), device=device)
             grid.build(self.pos, r_max)
             dev.launch(particle_extinction, n, [grid.id, self.pos, self.radius, self.sigma, r_max, self.tau], device)
-            keys = wp.empty(2 * n * D, dtype=wp.int64, device=device)
-            values = wp.empty(2 * n * D, dtype=int, device=device)
-            dev.launch(project_particles, n * D, [self.pos, self.dirs, wp.vec3(*self.centre), self.R, self.M,
+            k = len(which)
+            which = wp.array(which.astype(np.int32), dtype=int, device=device)
+            if partial:
+                dev.launch(clear_directions, n * k, [which, D, self.V, self.alpha], device)
+            keys = wp.empty(2 * n * k, dtype=wp.int64, device=device)
+            values = wp.empty(2 * n * k, dtype=int, device=device)
+            dev.launch(project_particles, n * k, [self.pos, self.dirs, which, wp.vec3(*self.centre), self.R, self.M,
                                                   keys, values], device)
-            wp.utils.radix_sort_pairs(keys, values, n * D)
-            dev.launch(link_network, n * D, [keys, values, self.pos, self.dirs, self.tau, self.M, self.V, self.alpha],
+            wp.utils.radix_sort_pairs(keys, values, n * k)
+            dev.launch(link_network, n * k, [keys, values, self.pos, self.dirs, self.tau, self.M, self.V, self.alpha],
                        device)
+        if partial:
+            self.converged = False
+            return
         self._phase_matrix()
         dtype = wp.float16 if s["half"] else wp.float32
         if self.I is None or self.I.shape != (self.rows, self.Dp) or self.I.dtype != dtype:
@@ -639,9 +680,15 @@ class IlluminationNetwork(Technique):
         """``positions`` (N, 3), ``directions`` (D, 3), ``visibility`` (N, D) int (-1: sky),
         ``alpha`` (N, D, 3) (vp's segment opacity), ``radiance`` (N, D, 3) (the network I),
         ``outgoing`` (N, 3) (toward the camera of the last frame), ``window`` M, ``bounds``
-        (centre, R)."""
+        (centre, R); ``for_view`` adds ``view_direction``, the sample direction nearest the
+        first light's travel direction (the one whose edges a view draws)."""
         n, D = self._n, self.D
-        return {
+        extra = {}
+        if for_view:
+            dirs = self.dirs.numpy()
+            travel = self.travel.numpy()[0] if self.scene.lights and n else np.array([0.0, -1.0, 0.0])
+            extra["view_direction"] = int(np.argmax(dirs @ travel)) if np.any(travel) else 0
+        return {**extra,
             "positions": self.pos.numpy(), "directions": self.dirs.numpy(),
             "visibility": self.V.numpy().reshape(n, D), "alpha": self.alpha.numpy().reshape(n, D, 3),
             "radiance": self.radiance_network(),
