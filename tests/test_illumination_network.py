@@ -117,18 +117,23 @@ def test_absorbing_cloud_attenuates_the_sky_along_each_chain(device):
 
 def test_one_particle_in_closed_form(device):
     """One sphere under a sun and a sky: it sees only sky, so its radiance toward the eye is
-    a (p E e^(-sigma r) + sky) (the sun attenuated from the rim to the centre, the sky's
-    isotropic in-scatter summing to sky); the pixel through its centre is
-    (1 - e^(-2 sigma r)) L + e^(-2 sigma r) sky."""
+    a (p E P(sigma r) + sky), P the sphere's escape probability (the sun's mean transmittance
+    over the sphere, with light_samples = 1), the sky's isotropic in-scatter summing to sky;
+    the pixel through its centre is (1 - e^(-2 sigma r)) L + e^(-2 sigma r) sky."""
     sig, rad, alb = 2.0, 0.3, 0.7
     scene = cloud(positions=[[0.0, 0.0, 0.0]], radius=rad, sigma_t=sig, albedo=alb, lights=[SUN], width=33,
                   height=33)
-    r, frame = converged(scene, device, directions=64)
-    L = alb * (3.0 / (4 * np.pi) * np.exp(-sig * rad) + np.asarray(SKY))
+    r, frame = converged(scene, device, directions=64, light_samples=1)
+    tau = sig * rad
+    escape = 3 / (8 * tau**3) * (2 * tau**2 - 1 + (1 + 2 * tau) * np.exp(-2 * tau))
+    L = alb * (3.0 / (4 * np.pi) * escape + np.asarray(SKY))
     np.testing.assert_allclose(r.arrays()["outgoing"][0], L, rtol=1e-5)
     t = np.exp(-2 * sig * rad)
     np.testing.assert_allclose(frame.image[16, 16], (1 - t) * L + t * np.asarray(SKY), rtol=1e-5)
     np.testing.assert_allclose(frame.image[0, 0], SKY, rtol=1e-6)  # outside the sphere's disc
+    # the escape probability is the mean over the sphere of the sun's transmittance: sampled
+    r4, _ = converged(scene, device, directions=64, light_samples=512)
+    np.testing.assert_allclose(r4.technique.direct.numpy()[0], 3.0 * escape, rtol=0.01)
 
 
 @pytest.mark.parametrize("albedo", [0.99, 1.0])

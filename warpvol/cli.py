@@ -127,7 +127,7 @@ def main(argv: list[str] | None = None) -> int:
     sub = parser.add_subparsers(dest="command", required=True)
     r = sub.add_parser("render", help="render a scene file or a built-in scene to .exr / .png / .npy")
     r.add_argument("scene", help="a .toml scene file or a built-in scene name (see `scenes`)")
-    r.add_argument("--technique", default="reference", help="reference | raymarch (default: reference)")
+    r.add_argument("--technique", default="reference", help="reference | raymarch | light_shafts | rbf_propagation | illumination_network (default: reference)")
     r.add_argument("--out", action="append", required=True, help="output image; repeat for several (.exr .png .npy)")
     r.add_argument("--device", default=None, help="cpu | cuda | cuda:N (default: $WARPVOL_DEVICE, else CUDA if present)")
     r.add_argument("--spp", type=int, default=None, help="samples per pixel (reference)")

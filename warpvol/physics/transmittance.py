@@ -55,3 +55,16 @@ def step_integral(sigma_t: float, dt: float) -> float:
 @wp.func
 def step_integral_rgb(sigma_t: wp.vec3, dt: float) -> wp.vec3:
     return wp.vec3(step_integral(sigma_t[0], dt), step_integral(sigma_t[1], dt), step_integral(sigma_t[2], dt))
+
+
+@wp.func
+def sphere_escape(tau: float) -> float:
+    """Mean transmittance from a uniformly distributed point of a homogeneous sphere of
+    optical radius tau = sigma_t r to its surface along one direction: the escape
+    probability 3/(8 tau^3) [2 tau^2 - 1 + (1 + 2 tau) e^(-2 tau)] (1 - 3 tau / 4 when thin,
+    3 / (4 tau) when thick). By symmetry it is also the mean over the sphere of the
+    transmittance from outside along one direction. Below tau = 0.1 the series
+    1 - 3/4 tau + 2/5 tau^2 - 1/6 tau^3 + 2/35 tau^4 avoids the cancellation."""
+    if tau < 0.1:
+        return 1.0 - tau * (0.75 - tau * (0.4 - tau * (1.0 / 6.0 - tau * (2.0 / 35.0))))
+    return 0.375 / (tau * tau * tau) * (2.0 * tau * tau - 1.0 + (1.0 + 2.0 * tau) * wp.exp(-2.0 * tau))

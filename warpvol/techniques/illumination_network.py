@@ -17,8 +17,12 @@ directions, between particles that see each other along them. Stages:
   k directions per frame, round robin, and keeps the other directions' links from earlier
   frames (positions, extinction and direct light are always current).
 * ``direct`` (reads the lights): each particle's irradiance from each light, averaged over
-  its sphere (bounded for a light inside it), times the exact transmittance from its
-  centre to the light through the union of spheres (chord lengths, overlaps add).
+  its sphere: the inverse square's ball mean (bounded for a light inside it), the exact
+  transmittance to the light through the union of spheres (chord lengths, overlaps add),
+  averaged over ``light_samples`` points of the sphere: a thick particle is lit on its rim,
+  not at its centre. With one sample: from the centre through the other spheres, times
+  its own sphere's mean self-shadowing (the escape probability
+  3/(8 tau^3) [2 tau^2 - 1 + (1 + 2 tau) e^(-2 tau)], tau = sigma_t r).
 * ``emission``: E[vp, i] = alpha a sum_lights p(w_light . w_i) E_light T_light, the
   light the segment of vp scatters into direction i. The paper snaps the light to the
   nearest sample direction; we evaluate the phase function at the light's own direction.
@@ -58,9 +62,10 @@ from .. import device as dev
 from ..geometry.camera import PinholeCamera, pinhole
 from ..media.particles import sphere_chord
 from ..physics.constants import INV_4PI, PI
-from ..physics.lights import Light, particle_incident
+from ..physics.lights import DIRECTIONAL, Light, particle_incident
 from ..physics.phase import Phase, orthonormal_basis, phase_eval, phase_struct
 from ..physics.sphere import fibonacci_directions
+from ..physics.transmittance import sphere_escape, step_integral_rgb, transmittance_rgb
 from ..pipeline import Setting, SettingsError, Stage, Technique
 from ..upload import SceneUploads
 
@@ -73,6 +78,8 @@ SETTINGS = {
     "warm": Setting(1, 0, 1, "1: start from the previous solution when the lights change; 0: from zero"),
     "half": Setting(0, 0, 1, "1: store I and E as float16, as the paper does"),
     "phase_norm": Setting(0, 0, 1, "0: the paper's weights 4 pi / D; 1: each column of the phase matrix sums to 1"),
+    "light_samples": Setting(4, 1, 1024, "points of each sphere whose transmittance to a light is averaged (1: centre)"),
+    "splat_steps": Setting(0, 0, 4096, "0: splat spheres sorted by depth; S: march S steps through overlapping spheres"),
     "refresh": Setting(0, 0, 4096, "when the medium changes, re-peel this many directions (round robin; 0: all)"),
 }
 
@@ -154,28 +161,78 @@ def link_network(offset: int, keys: wp.array(dtype=wp.int64), values: wp.array(d
 
 @wp.func
 def particle_transmittance(pos: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float),
-                           sigma: wp.array(dtype=wp.vec3), x: wp.vec3, w: wp.vec3, t1: float) -> wp.vec3:
-    """exp(-optical depth) along x + t w, 0 <= t <= t1, through the union of spheres."""
+                           sigma: wp.array(dtype=wp.vec3), skip: int, x: wp.vec3, w: wp.vec3, t1: float) -> wp.vec3:
+    """exp(-optical depth) along x + t w, 0 <= t <= t1, through the union of the spheres
+    other than ``skip``."""
     tau = wp.vec3(0.0)
     for q in range(pos.shape[0]):
-        c = sphere_chord(x, w, t1, pos[q], radius[q])
-        if c > 0.0:
-            tau += c * sigma[q]
+        if q != skip:
+            c = sphere_chord(x, w, t1, pos[q], radius[q])
+            if c > 0.0:
+                tau += c * sigma[q]
     return wp.vec3(wp.exp(-tau[0]), wp.exp(-tau[1]), wp.exp(-tau[2]))
+
+
+@wp.func
+def self_shadow(tau: float, inside: bool) -> float:
+    """A particle's mean transmittance of its own sphere (optical radius tau) to the light that
+    reaches it: the escape probability for light from outside (exact for a directional light),
+    (1 - e^-tau) / tau, exact at the centre, for a point light inside it."""
+    if inside:
+        if tau < 1.0e-4:
+            return 1.0 - 0.5 * tau
+        return (1.0 - wp.exp(-tau)) / tau
+    return sphere_escape(tau)
+
+
+@wp.func
+def ball_point(j: int, k: int, r: float) -> wp.vec3:
+    """Point j of k spread evenly over a ball of radius r about the origin: golden-spiral
+    directions (z = 1 - 2 (j + 1/2) / k) at equal-volume radii r v^(1/3), v = frac(j / phi)
+    (an independent low-discrepancy sequence, so radius and direction do not correlate)."""
+    u = (float(j) + 0.5) / float(k)
+    z = 1.0 - 2.0 * u
+    ring = wp.sqrt(wp.max(0.0, 1.0 - z * z))
+    phi = 2.39996323 * (float(j) + 0.5)
+    v = (float(j) + 0.5) * 0.61803398875
+    v = v - wp.floor(v)
+    return r * wp.pow(v, 1.0 / 3.0) * wp.vec3(ring * wp.cos(phi), z, ring * wp.sin(phi))
 
 
 @wp.kernel
 def light_arrival(offset: int, pos: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float),
-                  sigma: wp.array(dtype=wp.vec3), lights: wp.array(dtype=Light),
+                  sigma: wp.array(dtype=wp.vec3), lights: wp.array(dtype=Light), samples: int,
                   direct: wp.array(dtype=wp.vec3), travel: wp.array(dtype=wp.vec3)):
-    """Thread p L + l: light l's mean irradiance over particle p times its transmittance."""
+    """Thread p L + l: light l's irradiance averaged over particle p's sphere: the ball mean
+    of the inverse square times the transmittance to the light through every sphere (its
+    own included), averaged over ``samples`` points of the sphere; with one sample, from the
+    centre through the others times its own mean self-shadowing."""
     tid = wp.tid() + offset
     n_l = lights.shape[0]
     p = tid / n_l
-    w, dist, e = particle_incident(lights[tid % n_l], pos[p], radius[p])
+    r = radius[p]
+    light = lights[tid % n_l]
+    w, dist, e = particle_incident(light, pos[p], r)
     tr = wp.vec3(1.0)
     if wp.length_sq(w) > 0.0:
-        tr = particle_transmittance(pos, radius, sigma, pos[p], -w, dist)
+        if samples <= 1:
+            s = sigma[p] * r
+            inside = dist < r
+            own = wp.vec3(self_shadow(s[0], inside), self_shadow(s[1], inside), self_shadow(s[2], inside))
+            tr = wp.cw_mul(particle_transmittance(pos, radius, sigma, p, pos[p], -w, dist), own)
+        else:
+            acc = wp.vec3(0.0)
+            for j in range(samples):
+                x = pos[p] + ball_point(j, samples, r)
+                wj = w
+                dj = dist
+                if light.kind != DIRECTIONAL:
+                    to = x - light.position
+                    dj = wp.length(to)
+                    if dj > 0.0:
+                        wj = to / dj
+                acc += particle_transmittance(pos, radius, sigma, -1, x, -wj, dj)
+            tr = acc / float(samples)
     direct[tid] = wp.cw_mul(e, tr)
     travel[tid] = w
 
@@ -421,6 +478,57 @@ def composite(offset: int, cam: PinholeCamera, pos: wp.array(dtype=wp.vec3), rad
     image[tid] = L + wp.cw_mul(T, background)
 
 
+@wp.kernel
+def composite_march(offset: int, cam: PinholeCamera, pos: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float),
+                    sigma: wp.array(dtype=wp.vec3), radiance: wp.array(dtype=wp.vec3), values: wp.array(dtype=int),
+                    first: wp.array(dtype=int), last: wp.array(dtype=int), tiles_x: int, steps: int,
+                    background: wp.vec3, image: wp.array(dtype=wp.vec3)):
+    """Overlapping spheres integrated together: ``steps`` steps over the span of the spheres
+    the pixel ray meets, each with the summed sigma_t and source sum sigma_k L_k / sigma of the
+    spheres containing its midpoint, integrated exactly over the step. Unlike the sorted
+    splat, light from where spheres interleave is attenuated only by what lies in front."""
+    tid = wp.tid() + offset
+    px = tid % cam.width
+    py = tid / cam.width
+    o = cam.origin
+    sx = 2.0 * (float(px) + 0.5) / float(cam.width) - 1.0
+    sy = 1.0 - 2.0 * (float(py) + 0.5) / float(cam.height)
+    d = wp.normalize(cam.forward + sx * cam.right + sy * cam.up)
+    tile = (py / 16) * tiles_x + px / 16
+    t0 = float(1.0e30)
+    t1 = float(0.0)
+    for k in range(first[tile], last[tile]):
+        p = values[k]
+        oc = pos[p] - o
+        b = wp.dot(oc, d)
+        h2 = radius[p] * radius[p] - (wp.dot(oc, oc) - b * b)
+        if h2 > 0.0 and b + wp.sqrt(h2) > 0.0:
+            h = wp.sqrt(h2)
+            t0 = wp.min(t0, wp.max(b - h, 0.0))
+            t1 = wp.max(t1, b + h)
+    L = wp.vec3(0.0)
+    T = wp.vec3(1.0)
+    if t1 > t0:
+        dt = (t1 - t0) / float(steps)
+        for q in range(steps):
+            x = o + (t0 + (float(q) + 0.5) * dt) * d
+            sig = wp.vec3(0.0)
+            src = wp.vec3(0.0)
+            for k in range(first[tile], last[tile]):
+                p = values[k]
+                e = x - pos[p]
+                if wp.dot(e, e) <= radius[p] * radius[p]:
+                    sig += sigma[p]
+                    src += wp.cw_mul(sigma[p], radiance[p])
+            if sig[0] > 0.0 or sig[1] > 0.0 or sig[2] > 0.0:
+                f = step_integral_rgb(sig, dt)  # integral of e^(-sig t) over the step
+                L += wp.cw_mul(T, wp.cw_mul(src, f))
+                T = wp.cw_mul(T, transmittance_rgb(sig * dt))
+                if wp.max(T[0], wp.max(T[1], T[2])) < 1.0e-5:
+                    break
+    image[tid] = L + wp.cw_mul(T, background)
+
+
 # Concrete float32 and float16 overloads of the generic kernels, declared before the module
 # first loads, so it compiles once with all of them (not once more per new overload).
 for _t in (wp.float32, wp.float16):
@@ -476,11 +584,13 @@ class IlluminationNetwork(Technique):
         return self.uploads.stages() + [
             Stage("network", self._network, reads=("medium",),
                   settings=("directions", "window", "half", "phase_norm", "refresh")),
-            Stage("direct", self._direct, reads=("lights",), after=("network", "lights"), needed=lights),
+            Stage("direct", self._direct, reads=("lights",), settings=("light_samples",), after=("network", "lights"),
+                  needed=lights),
             Stage("emission", self._emission, after=("network", "direct"), settings=("half",)),
             Stage("iterate", self._iterate, reads=("background",), settings=("iterations", "tolerance", "warm"),
                   after=("network", "emission"), settled=self.converged),
-            Stage("splat", self._splat, reads=("camera", "background"), after=("iterate", "direct")),
+            Stage("splat", self._splat, reads=("camera", "background"), settings=("splat_steps",),
+                  after=("iterate", "direct")),
         ]
 
     def _network(self):
@@ -571,8 +681,9 @@ class IlluminationNetwork(Technique):
         self.direct = wp.zeros(max(n * L, 1), dtype=wp.vec3, device=self.device)
         self.travel = wp.zeros(max(n * L, 1), dtype=wp.vec3, device=self.device)
         if n:
-            dev.launch(light_arrival, n * L, [self.pos, self.radius, self.sigma, self.uploads.lights, self.direct,
-                                              self.travel], self.device, min_split=256)
+            dev.launch(light_arrival, n * L, [self.pos, self.radius, self.sigma, self.uploads.lights,
+                                              self.settings["light_samples"], self.direct, self.travel], self.device,
+                       min_split=256)
 
     def _emission(self):
         n, D, L = self._n, self.D, len(self.scene.lights)
@@ -662,8 +773,13 @@ class IlluminationNetwork(Technique):
                 dev.launch(splat_pairs, n, [pc, self.pos, rect, start, tx, z_far, keys, values], device)
                 wp.utils.radix_sort_pairs(keys, values, total)
                 dev.launch(tile_ranges, total, [keys, total, first, last], device)
-        dev.launch(composite, W * H, [pc, self.pos, self.radius, self.sigma, self.radiance, values, first, last, tx,
-                                      wp.vec3(*self.scene.background), self.image], device)
+        bg = wp.vec3(*self.scene.background)
+        if self.settings["splat_steps"]:
+            dev.launch(composite_march, W * H, [pc, self.pos, self.radius, self.sigma, self.radiance, values, first, last,
+                                                tx, self.settings["splat_steps"], bg, self.image], device)
+        else:
+            dev.launch(composite, W * H, [pc, self.pos, self.radius, self.sigma, self.radiance, values, first, last,
+                                          tx, bg, self.image], device)
 
     def output(self):
         return self.image
