@@ -21,3 +21,36 @@ def test_raymarch_frame(benchmark, steps):
     s = wv.load_scene("fog-box")
     wv.render(s, technique="raymarch", steps=steps)
     benchmark.pedantic(lambda: wv.render(s, technique="raymarch", steps=steps), rounds=5, iterations=1)
+
+
+@pytest.mark.parametrize("particles,directions", [(512, 128), (1024, 128), (1024, 256)])
+def test_illumination_network_iteration(benchmark, particles, directions):
+    """One iteration of papers/000's update (S = I P, then the gather), the paper's cloud."""
+    import warp as wp
+
+    from bench.sweeps import _network_scene
+
+    r = wv.Renderer(_network_scene(False, particles, 64), technique="illumination_network", directions=directions,
+                    iterations=0)
+    r.render()
+    t = r.technique
+
+    def step():
+        t.step(measure=False)
+        wp.synchronize_device(t.device)
+
+    benchmark.pedantic(step, rounds=20, iterations=1, warmup_rounds=2)
+
+
+def test_illumination_network_build(benchmark):
+    """The visibility network for 1024 particles, 128 directions, a 128 x 128 window."""
+    from bench.sweeps import _network_scene
+
+    r = wv.Renderer(_network_scene(False, 1024, 64), technique="illumination_network", window=128, iterations=0)
+    r.render()
+
+    def build():
+        r.touch("medium")
+        r.render()
+
+    benchmark.pedantic(build, rounds=5, iterations=1)
