@@ -184,8 +184,8 @@ def convergence_section(rows: list[dict], png: Path) -> list[str]:
     for r in rows:
         change, err = r["change"], r["network_error"]
         for k in sorted(int(k) for k in r["image_error"]):
-            lines.append(f"| {_params(r)} | {k} | {change[k - 1]:.2e} | "
-                         f"{err[min(k, len(err)) - 1]:.2e} | {r['image_error'][str(k)]:.2e} |")
+            e = f"{err[k - 1]:.2e}" if k <= len(err) else "–"
+            lines.append(f"| {_params(r)} | {k} | {change[k - 1]:.2e} | {e} | {r['image_error'][str(k)]:.2e} |")
         x = np.arange(1, len(change) + 1)
         ax.semilogy(x, change, "-", label=f"{_params(r)}: change per iteration")
         ax.semilogy(np.arange(1, len(err) + 1), err, "--", label=f"{_params(r)}: error of I to converged")

@@ -432,14 +432,14 @@ def _convergence(params: dict, device: str, quick: bool) -> dict:
     nets, images, changes = [], [], []
     for k in range(iters):
         changes.append(t.step(measure=True))
-        if k + 1 <= 100 or k + 1 == iters:
+        if k + 1 <= 100:  # the first 100 iterates (memory: N D 3 floats each)
             nets.append(t.radiance_network())
     r.update(settings={"iterations": 0})
     converged = t.radiance_network()
     shown = {}
     for k in CONVERGENCE_SHOWN + (iters,):
         if k <= iters:
-            t.I.assign(wp_array_like(t.I, nets[min(k, len(nets)) - 1], t))
+            t.I.assign(wp_array_like(t.I, nets[k - 1] if k <= len(nets) else converged, t))
             r.touch("camera")
             shown[k] = r.render().image.copy()
     final = shown[iters]

@@ -58,9 +58,9 @@ def test_interrupted_sweep_keeps_its_rows_and_measures_the_rest(out):
 def test_sweeps_waiting_for_a_technique_say_so(out, capsys):
     assert main(["bench", "--list"]) == 0
     listing = capsys.readouterr().out
-    assert "raymarch-accuracy" in listing and "waits for illumination_network (issue 6)" in listing
-    assert main(["bench", "illumination-network", "--quick", "--out", str(out)]) == 2
-    assert "waits for technique 'illumination_network'" in capsys.readouterr().err
+    assert "raymarch-accuracy" in listing and "waits for depth_impostors (no issue yet)" in listing
+    assert main(["bench", "depth-impostors", "--quick", "--out", str(out)]) == 2
+    assert "waits for technique 'depth_impostors'" in capsys.readouterr().err
 
 
 def test_paper_report_normalises_both_columns_to_the_first_row(tmp_path):
