@@ -451,12 +451,12 @@ def _convergence(params: dict, device: str, quick: bool) -> dict:
 
 
 def wp_array_like(I, radiance, t):
-    """The network ``radiance`` (N, D, 3) in ``I``'s storage layout (planes, padded, scaled)."""
+    """The network ``radiance`` (N, D, 3) in ``I``'s storage layout (row 3 p + c, padded, scaled)."""
     import numpy as np
 
     host = np.zeros(I.shape, np.float32)
     n, D = radiance.shape[:2]
-    host[: 3 * n, :D] = np.moveaxis(radiance, -1, 0).reshape(3 * n, D) / t.scale
+    host[: 3 * n, :D] = np.moveaxis(radiance, -1, 1).reshape(3 * n, D) / t.scale  # row 3 p + c
     return host
 
 

@@ -46,7 +46,9 @@ directions, between particles that see each other along them. Stages:
   of overlapping spheres. The background shows through. A pixel stops once its
   transmittance falls below 1e-5 (what lies behind changes it by less than that fraction).
 
-``half = 1`` stores I and E as float16 (as the paper does), scaled by a power of two so
+I and E are (3N, D) arrays, channel c of particle p in row 3p + c (rows padded to a multiple
+of 4, columns to 16), so the gather reads one particle's three channels from neighbouring
+rows. ``half = 1`` stores them as float16 (as the paper does), scaled by a power of two so
 the largest source is at most 1: the iteration is a contraction of the sources, so no
 entry comes near the float16 limit of 65504.
 """
@@ -250,7 +252,7 @@ def emission_network(offset: int, dirs: wp.array(dtype=wp.vec3), direct: wp.arra
                      travel: wp.array(dtype=wp.vec3), n_lights: int, albedo: wp.array(dtype=wp.vec3),
                      alpha: wp.array(dtype=wp.vec3), ph: Phase, table: wp.array(dtype=float), inv_scale: float,
                      E: wp.array2d(dtype=Any)):
-    """E[vp, i] = alpha a sum_l p(w_l . w_i) E_l T_l, per channel plane (row c N + vp)."""
+    """E[vp, i] = alpha a sum_l p(w_l . w_i) E_l T_l, channel c of vp in row 3 vp + c."""
     tid = wp.tid() + offset
     D = dirs.shape[0]
     n = albedo.shape[0]
@@ -261,7 +263,7 @@ def emission_network(offset: int, dirs: wp.array(dtype=wp.vec3), direct: wp.arra
         s += phase_toward(ph, table, travel[p * n_lights + l], dirs[i]) * direct[p * n_lights + l]
     e = wp.cw_mul(wp.cw_mul(alpha[tid], albedo[p]), s) * inv_scale
     for c in range(3):
-        E[c * n + p, i] = E.dtype(e[c])
+        E[3 * p + c, i] = E.dtype(e[c])
 
 
 @wp.kernel
@@ -318,14 +320,14 @@ def gather_update(offset: int, V: wp.array(dtype=int), alpha: wp.array(dtype=wp.
         vp = V[p * D + i]
         if vp < 0:
             for c in range(3):
-                out[c * n + p, i] = out.dtype(sky[c])
+                out[3 * p + c, i] = out.dtype(sky[c])
         else:
             a = alpha[vp * D + i]
             al = albedo[vp]
             for c in range(3):
-                r = c * n + vp
+                r = 3 * vp + c
                 v = (1.0 - a[c]) * float(I[r, i]) + float(E[r, i]) + a[c] * al[c] * S[r, i]
-                out[c * n + p, i] = out.dtype(v)
+                out[3 * p + c, i] = out.dtype(v)
 
 
 @wp.kernel
@@ -366,7 +368,7 @@ def outgoing_radiance(offset: int, pos: wp.array(dtype=wp.vec3), eye: wp.vec3, d
     for d in range(D):
         f = phase_eval(ph, table, wp.dot(dirs[d], w))
         total += f
-        s += f * wp.vec3(float(I[p, d]), float(I[n + p, d]), float(I[2 * n + p, d]))
+        s += f * wp.vec3(float(I[3 * p, d]), float(I[3 * p + 1, d]), float(I[3 * p + 2, d]))
     norm = 4.0 * PI / float(D)
     if normalise != 0 and total > 0.0:
         norm = 1.0 / total
@@ -790,7 +792,7 @@ class IlluminationNetwork(Technique):
         """I as (N, D, 3) float32 in scene units: incoming radiance at p travelling along w_i."""
         n, D = self._n, self.D
         I = self.I.numpy()[: 3 * n, :D].astype(np.float32) * self.scale
-        return np.moveaxis(I.reshape(3, n, D), 0, -1)
+        return np.moveaxis(I.reshape(n, 3, D), 1, -1)
 
     def arrays(self, for_view: bool = False) -> dict:
         """``positions`` (N, 3), ``directions`` (D, 3), ``visibility`` (N, D) int (-1: sky),
