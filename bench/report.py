@@ -104,11 +104,22 @@ def paper_section(rows: list[dict], png: Path) -> list[str]:
     ours = [1000.0 / r["median_ms"] for r in rows]
     paper = [r["paper"] if isinstance(r.get("paper"), (int, float)) else None for r in rows]
     p0 = paper[0]
-    lines = ["| parameters | paper FPS | ours FPS | paper ÷ first row | ours ÷ first row | stages ran (ms) | peak MB |",
-             "|---|---|---|---|---|---|---|"]
+    it = "iteration_ms" in rows[0]  # illumination networks: one iteration timed alone
+    lines = ["| parameters | paper FPS | ours FPS | paper ÷ first row | ours ÷ first row | stages ran (ms) | peak MB |"
+             + (" one iteration ms | GFLOP/s | of FP32 peak | network build ms |" if it else ""),
+             "|---|---|---|---|---|---|---|" + ("---|---|---|---|" if it else "")]
     for r, o, p in zip(rows, ours, paper):
+        extra = ""
+        if it:
+            frac = r.get("peak_fraction")
+            extra = (f" {r['iteration_ms']:.2f} | {r['gflops']:.1f} | {f'{100 * frac:.1f}%' if frac else '–'} | "
+                     f"{r['network_ms']:.1f} |")
         lines.append(f"| {_params(r)} | {_fmt(p)} | {o:.1f} | {_fmt(p / p0 if p and p0 else None)} | "
-                     f"{o / ours[0]:.3f} | {_stages(r)} | {r['peak_mem_mb']:.0f} |")
+                     f"{o / ours[0]:.3f} | {_stages(r)} | {r['peak_mem_mb']:.0f} |" + extra)
+    if it and rows[0].get("peak_gflops"):
+        lines += ["", f"FP32 peak taken as {rows[0]['peak_gflops']:.0f} GFLOP/s (for a CPU: cores × clock × SIMD "
+                  "lanes × 2, one FMA unit per core; for a GPU the vendor's figure). One iteration is "
+                  "2·3·N·D² flops (the product S = I·P; the gather is not counted)."]
     plt = _plt()
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     x = np.arange(len(rows))

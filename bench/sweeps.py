@@ -366,6 +366,30 @@ def _network_scene(quick: bool, n: int = 1024, width: int = 512, albedo: float =
     return wv.load_scene(d)
 
 
+FP32_PEAK_GFLOPS = {"NVIDIA H200": 67_000.0}  # vendor figure, FP32 without tensor cores
+
+
+def peak_gflops(device: str) -> float | None:
+    """The device's FP32 peak: a vendor figure for known GPUs; for the CPU, cores x clock x
+    FMA lanes (AVX-512: 16 x 2 flops a cycle, AVX2: 8 x 2), one FMA unit per core assumed."""
+    import os
+
+    import warp as wp
+
+    if str(device).startswith("cuda"):
+        name = wp.get_device(device).name
+        return next((v for k, v in FP32_PEAK_GFLOPS.items() if k in name), None)
+    try:
+        info = open("/proc/cpuinfo").read()
+    except OSError:
+        return None
+    mhz = [float(line.split(":")[1]) for line in info.splitlines() if line.startswith("cpu MHz")]
+    if not mhz:
+        return None
+    lanes = 16 if "avx512f" in info else 8 if "avx2" in info else 4
+    return len(os.sched_getaffinity(0)) * max(mhz) / 1000.0 * lanes * 2
+
+
 def _network_table_grid(quick: bool) -> list[dict]:
     return [{"particles": 1024, "directions": 128}, {"particles": 512, "directions": 128}]
 
@@ -394,7 +418,10 @@ def _network_frame(params: dict, device: str, quick: bool) -> dict:
     for _ in range(1 if quick else 3):
         r.touch("medium")
         builds.append(r.render().stages["network"].ms)
-    row.update(iteration_ms=it * 1000.0, gflops=2.0 * 3 * n * D * D / it / 1e9, window=t.M,
+    gflops = 2.0 * 3 * n * D * D / it / 1e9
+    peak = peak_gflops(device)
+    row.update(iteration_ms=it * 1000.0, gflops=gflops, peak_gflops=peak,
+               peak_fraction=gflops / peak if peak else None, window=t.M,
                network_ms=sorted(builds)[len(builds) // 2],
                scene=f"{n} particles, {scene.camera.width}x{scene.camera.height}, 2 suns + sky")
     return row
