@@ -380,7 +380,8 @@ def peak_gflops(device: str) -> float | None:
         name = wp.get_device(device).name
         return next((v for k, v in FP32_PEAK_GFLOPS.items() if k in name), None)
     try:
-        info = open("/proc/cpuinfo").read()
+        with open("/proc/cpuinfo") as f:
+            info = f.read()
     except OSError:
         return None
     mhz = [float(line.split(":")[1]) for line in info.splitlines() if line.startswith("cpu MHz")]
@@ -456,7 +457,7 @@ def _convergence(params: dict, device: str, quick: bool) -> dict:
                     window=params.get("window", 0))
     r.render()
     t = r.technique
-    nets, images, changes = [], [], []
+    nets, changes = [], []
     for k in range(iters):
         changes.append(t.step(measure=True))
         if k + 1 <= 100:  # the first 100 iterates (memory: N D 3 floats each)
@@ -538,7 +539,7 @@ def _albedo_bound(params: dict, device: str, quick: bool) -> dict:
     return {"first_frame_ms": 0.0, "median_ms": float("nan"), "spread_ms": [0, 0], "frames": 1, "stages": {},
             "eps_rmse": eps, "total_rmse": total, "bound": eps / (1 - a), "holds": bool(total <= eps / (1 - a)),
             "ss_rms": out[1][1], "ms_rms": out[-1][1], "reference_floor": [out[1][2], out[-1][2]],
-            "scene": f"256 particles {w}x{w}, no sky, D = 128"}  # noqa: E501
+            "scene": f"256 particles {w}x{w}, no sky, D = 128"}
 
 
 def drifting_cloud(positions, frame: int, spin: float = 0.02, wander: float = 0.02):

@@ -76,12 +76,12 @@ SETTINGS = {
     "directions": Setting(128, 1, 4096, "sample directions D"),
     "window": Setting(0, 0, 4096, "window resolution M per direction; 0: the paper's rule D (R tau)^2 / pi >= M^2"),
     "iterations": Setting(1, 0, 1 << 20, "iterations per frame (the paper: 1)"),
-    "tolerance": Setting(1e-4, 0.0, 1.0, "settle when an iteration changes I by less than this (relative L2); 0: never"),
+    "tolerance": Setting(1e-4, 0.0, 1.0, "settle once an iteration changes I by under this (relative L2); 0: never"),
     "warm": Setting(1, 0, 1, "1: start from the previous solution when the lights change; 0: from zero"),
     "half": Setting(0, 0, 1, "1: store I and E as float16, as the paper does"),
     "phase_norm": Setting(0, 0, 1, "0: the paper's weights 4 pi / D; 1: each column of the phase matrix sums to 1"),
-    "light_samples": Setting(4, 1, 1024, "points of each sphere whose transmittance to a light is averaged (1: centre)"),
-    "splat_steps": Setting(0, 0, 4096, "0: splat spheres sorted by depth; S: march S steps through overlapping spheres"),
+    "light_samples": Setting(4, 1, 1024, "points of a sphere whose transmittance to a light is averaged (1: centre)"),
+    "splat_steps": Setting(0, 0, 4096, "0: splat spheres sorted by depth; S: march S steps through overlapping ones"),
     "refresh": Setting(0, 0, 4096, "when the medium changes, re-peel this many directions (round robin; 0: all)"),
 }
 
@@ -255,7 +255,6 @@ def emission_network(offset: int, dirs: wp.array(dtype=wp.vec3), direct: wp.arra
     """E[vp, i] = alpha a sum_l p(w_l . w_i) E_l T_l, channel c of vp in row 3 vp + c."""
     tid = wp.tid() + offset
     D = dirs.shape[0]
-    n = albedo.shape[0]
     p = tid / D
     i = tid % D
     s = wp.vec3(0.0)
@@ -312,7 +311,6 @@ def gather_update(offset: int, V: wp.array(dtype=int), alpha: wp.array(dtype=wp.
     """The paper's update of I[p, i] from the upstream particle vp = V[p, i] (sky if none),
     for 16 directions i of particle p per thread."""
     tid = wp.tid() + offset
-    n = albedo.shape[0]
     blocks = (D + 15) / 16
     p = tid / blocks
     i0 = (tid % blocks) * 16
@@ -357,7 +355,6 @@ def outgoing_radiance(offset: int, pos: wp.array(dtype=wp.vec3), eye: wp.vec3, d
     """a (sum_d I[p, d] p(w_d . w_eye) 4 pi / D + sum_l p(w_l . w_eye) E_l T_l): the source
     radiance of particle p toward the eye; ``normalise``: the D weights sum to 1 instead."""
     p = wp.tid() + offset
-    n = pos.shape[0]
     D = dirs.shape[0]
     to_eye = eye - pos[p]
     w = wp.vec3(0.0, 0.0, 1.0)
@@ -601,7 +598,7 @@ class IlluminationNetwork(Technique):
         s, device = self.settings, self.device
         pos = np.concatenate([np.asarray(m.positions, np.float32).reshape(-1, 3) for m in self.scene.media])
         counts = [len(m.positions) for m in self.scene.media]
-        rep = lambda values: np.repeat(np.asarray(values, np.float32), counts, axis=0)  # noqa: E731
+        rep = lambda values: np.repeat(np.asarray(values, np.float32), counts, axis=0)
         radius = rep([m.radius for m in self.scene.media])
         sigma = rep([m.sigma_t for m in self.scene.media])
         albedo = rep([m.albedo for m in self.scene.media])
@@ -658,6 +655,7 @@ class IlluminationNetwork(Technique):
             self.I = wp.zeros((self.rows, self.Dp), dtype=dtype, device=device)
             self.I_next = wp.zeros_like(self.I)
             self.E = wp.zeros_like(self.I)
+            self.S = wp.zeros((self.rows, self.Dp), dtype=float, device=device)  # I P, always float32
             self.history = []
         self.converged = False
 
@@ -727,13 +725,11 @@ class IlluminationNetwork(Technique):
         relative L2 change, else NaN."""
         n, D, device = self._n, self.D, self.device
         if n:
-            S = self._S = getattr(self, "_S", None)
-            if S is None or S.shape != (self.rows, self.Dp):
-                S = self._S = wp.empty((self.rows, self.Dp), dtype=float, device=device)
+            S = self.S
             dev.launch(scatter_matmul, self.rows // ROWS * (self.Dp // 16), [self.I, self.P, S], device, min_split=64)
             sky = wp.vec3(*(np.asarray(self.scene.background, np.float64) / self.scale))
-            dev.launch(gather_update, n * (-(-D // 16)), [self.V, self.alpha, self.albedo, self.E, self.I, S, sky, D, self.I_next],
-                       device)
+            dev.launch(gather_update, n * (-(-D // 16)),
+                       [self.V, self.alpha, self.albedo, self.E, self.I, S, sky, D, self.I_next], device)
         if measure is None:
             measure = self.settings["tolerance"] > 0.0
         change = float("nan")
@@ -777,8 +773,8 @@ class IlluminationNetwork(Technique):
                 dev.launch(tile_ranges, total, [keys, total, first, last], device)
         bg = wp.vec3(*self.scene.background)
         if self.settings["splat_steps"]:
-            dev.launch(composite_march, W * H, [pc, self.pos, self.radius, self.sigma, self.radiance, values, first, last,
-                                                tx, self.settings["splat_steps"], bg, self.image], device)
+            dev.launch(composite_march, W * H, [pc, self.pos, self.radius, self.sigma, self.radiance, values, first,
+                                                last, tx, self.settings["splat_steps"], bg, self.image], device)
         else:
             dev.launch(composite, W * H, [pc, self.pos, self.radius, self.sigma, self.radiance, values, first, last,
                                           tx, bg, self.image], device)
