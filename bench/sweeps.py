@@ -391,6 +391,12 @@ def peak_gflops(device: str) -> float | None:
     return len(os.sched_getaffinity(0)) * max(mhz) / 1000.0 * lanes * 2
 
 
+def untimed_row(frames: int, **fields) -> dict:
+    """A row that measures no frame time (convergence, error bounds): the common fields empty."""
+    return {"first_frame_ms": 0.0, "median_ms": float("nan"), "spread_ms": [0, 0], "frames": frames, "stages": {},
+            **fields}
+
+
 def _network_table_grid(quick: bool) -> list[dict]:
     return [{"particles": 1024, "directions": 128}, {"particles": 512, "directions": 128}]
 
@@ -467,25 +473,15 @@ def _convergence(params: dict, device: str, quick: bool) -> dict:
     shown = {}
     for k in CONVERGENCE_SHOWN + (iters,):
         if k <= iters:
-            t.I.assign(wp_array_like(t.I, nets[k - 1] if k <= len(nets) else converged, t))
+            t.set_radiance_network(nets[k - 1] if k <= len(nets) else converged)
             r.touch("camera")
             shown[k] = r.render().image.copy()
     final = shown[iters]
     net_err = [float(np.sqrt(((x - converged) ** 2).sum() / (converged**2).sum())) for x in nets]
     img_err = {k: wv.relative_rmse(v, final) for k, v in shown.items()}
-    return {"first_frame_ms": 0.0, "median_ms": float("nan"), "spread_ms": [0, 0], "frames": iters, "stages": {},
-            "change": changes, "network_error": net_err, "image_error": {str(k): v for k, v in img_err.items()},
-            "images": {str(k): v for k, v in shown.items() if k in CONVERGENCE_SHOWN}}
-
-
-def wp_array_like(I, radiance, t):
-    """The network ``radiance`` (N, D, 3) in ``I``'s storage layout (row 3 p + c, padded, scaled)."""
-    import numpy as np
-
-    host = np.zeros(I.shape, np.float32)
-    n, D = radiance.shape[:2]
-    host[: 3 * n, :D] = np.moveaxis(radiance, -1, 1).reshape(3 * n, D) / t.scale  # row 3 p + c
-    return host
+    return untimed_row(iters, change=changes, network_error=net_err,
+                       image_error={str(k): v for k, v in img_err.items()},
+                       images={str(k): v for k, v in shown.items() if k in CONVERGENCE_SHOWN})
 
 
 def _network_accuracy_grid(quick: bool) -> list[dict]:
@@ -526,20 +522,19 @@ def _albedo_bound(params: dict, device: str, quick: bool) -> dict:
     scattering event, the total is the converged image's RMSE against the unlimited one."""
     w, spp = (24, 16) if quick else (32, 256)
     scene = _network_scene(quick, 256, w, albedo=params["albedo"], sky=False)
+    import numpy as np
+
     out = {}
     for bounces, settings in ((1, {"iterations": 0}), (-1, {"iterations": 3000, "tolerance": 1e-6})):
         r = wv.Renderer(scene, technique="illumination_network", device=device, directions=128, **settings)
         image = r.render().image
         ref, floor = reference_image(scene, device, spp=spp, max_bounces=bounces, pixel_area=0)
-        import numpy as np
-
         out[bounces] = (float(np.sqrt(np.mean((image - ref) ** 2))), float(np.sqrt(np.mean(ref**2))), floor)
     eps, total = out[1][0], out[-1][0]
     a = params["albedo"]
-    return {"first_frame_ms": 0.0, "median_ms": float("nan"), "spread_ms": [0, 0], "frames": 1, "stages": {},
-            "eps_rmse": eps, "total_rmse": total, "bound": eps / (1 - a), "holds": bool(total <= eps / (1 - a)),
-            "ss_rms": out[1][1], "ms_rms": out[-1][1], "reference_floor": [out[1][2], out[-1][2]],
-            "scene": f"256 particles {w}x{w}, no sky, D = 128"}
+    return untimed_row(1, eps_rmse=eps, total_rmse=total, bound=eps / (1 - a), holds=bool(total <= eps / (1 - a)),
+                       ss_rms=out[1][1], ms_rms=out[-1][1], reference_floor=[out[1][2], out[-1][2]],
+                       scene=f"256 particles {w}x{w}, no sky, D = 128")
 
 
 def drifting_cloud(positions, frame: int, spin: float = 0.02, wander: float = 0.02):

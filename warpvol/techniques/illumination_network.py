@@ -61,7 +61,7 @@ import numpy as np
 import warp as wp
 
 from .. import device as dev
-from ..geometry.camera import PinholeCamera, pinhole
+from ..geometry.camera import PinholeCamera, camera_ray, pinhole
 from ..media.particles import sphere_chord
 from ..physics.constants import INV_4PI, PI
 from ..physics.lights import DIRECTIONAL, Light, particle_incident
@@ -85,7 +85,7 @@ SETTINGS = {
     "refresh": Setting(0, 0, 4096, "when the medium changes, re-peel this many directions (round robin; 0: all)"),
 }
 
-TILE = 16  # pixels per side of a splatting tile
+TILE = wp.constant(16)  # pixels per side of a splatting tile
 ROWS = 4  # rows of I per thread of the matrix product
 vec16 = wp.types.vector(length=16, dtype=float)
 DEPTH_BITS = wp.constant(wp.int64(1 << 31))
@@ -406,10 +406,10 @@ def splat_bounds(offset: int, cam: PinholeCamera, pos: wp.array(dtype=wp.vec3), 
         # slopes to pixels: px = (s / k + 1) W / 2, py = (1 - s / k) H / 2
         w = float(cam.width)
         h = float(cam.height)
-        x0 = wp.clamp(int(wp.floor((ax / kx + 1.0) * 0.5 * w / float(16))), 0, tiles_x)
-        x1 = wp.clamp(int(wp.floor((bx / kx + 1.0) * 0.5 * w / float(16))) + 1, 0, tiles_x)
-        y0 = wp.clamp(int(wp.floor((1.0 - by / ky) * 0.5 * h / float(16))), 0, tiles_y)
-        y1 = wp.clamp(int(wp.floor((1.0 - ay / ky) * 0.5 * h / float(16))) + 1, 0, tiles_y)
+        x0 = wp.clamp(int(wp.floor((ax / kx + 1.0) * 0.5 * w / float(TILE))), 0, tiles_x)
+        x1 = wp.clamp(int(wp.floor((bx / kx + 1.0) * 0.5 * w / float(TILE))) + 1, 0, tiles_x)
+        y0 = wp.clamp(int(wp.floor((1.0 - by / ky) * 0.5 * h / float(TILE))), 0, tiles_y)
+        y1 = wp.clamp(int(wp.floor((1.0 - ay / ky) * 0.5 * h / float(TILE))) + 1, 0, tiles_y)
     rect[p] = wp.vec4i(x0, x1, y0, y1)
     count[p] = wp.max(x1 - x0, 0) * wp.max(y1 - y0, 0)
 
@@ -446,6 +446,14 @@ def tile_ranges(offset: int, keys: wp.array(dtype=wp.int64), total: int, first: 
         last[tile] = k + 1
 
 
+@wp.func
+def pixel_ray_tile(cam: PinholeCamera, tid: int, tiles_x: int):
+    """The ray direction through pixel ``tid``'s centre and the index of its splatting tile."""
+    px = tid % cam.width
+    py = tid / cam.width
+    return camera_ray(cam, float(px) + 0.5, float(py) + 0.5), (py / TILE) * tiles_x + px / TILE
+
+
 @wp.kernel
 def composite(offset: int, cam: PinholeCamera, pos: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float),
               sigma: wp.array(dtype=wp.vec3), radiance: wp.array(dtype=wp.vec3), values: wp.array(dtype=int),
@@ -453,13 +461,8 @@ def composite(offset: int, cam: PinholeCamera, pos: wp.array(dtype=wp.vec3), rad
               image: wp.array(dtype=wp.vec3)):
     """Front to back over the pixel's tile: each sphere adds T (1 - e^-sigma chord) L_p."""
     tid = wp.tid() + offset
-    px = tid % cam.width
-    py = tid / cam.width
     o = cam.origin
-    sx = 2.0 * (float(px) + 0.5) / float(cam.width) - 1.0
-    sy = 1.0 - 2.0 * (float(py) + 0.5) / float(cam.height)
-    d = wp.normalize(cam.forward + sx * cam.right + sy * cam.up)
-    tile = (py / 16) * tiles_x + px / 16
+    d, tile = pixel_ray_tile(cam, tid, tiles_x)
     L = wp.vec3(0.0)
     T = wp.vec3(1.0)
     for k in range(first[tile], last[tile]):
@@ -487,13 +490,8 @@ def composite_march(offset: int, cam: PinholeCamera, pos: wp.array(dtype=wp.vec3
     spheres containing its midpoint, integrated exactly over the step. Unlike the sorted
     splat, light from where spheres interleave is attenuated only by what lies in front."""
     tid = wp.tid() + offset
-    px = tid % cam.width
-    py = tid / cam.width
     o = cam.origin
-    sx = 2.0 * (float(px) + 0.5) / float(cam.width) - 1.0
-    sy = 1.0 - 2.0 * (float(py) + 0.5) / float(cam.height)
-    d = wp.normalize(cam.forward + sx * cam.right + sy * cam.up)
-    tile = (py / 16) * tiles_x + px / 16
+    d, tile = pixel_ray_tile(cam, tid, tiles_x)
     t0 = float(1.0e30)
     t1 = float(0.0)
     for k in range(first[tile], last[tile]):
@@ -789,6 +787,13 @@ class IlluminationNetwork(Technique):
         n, D = self._n, self.D
         I = self.I.numpy()[: 3 * n, :D].astype(np.float32) * self.scale
         return np.moveaxis(I.reshape(n, 3, D), 1, -1)
+
+    def set_radiance_network(self, radiance: np.ndarray) -> None:
+        """Load I from (N, D, 3) radiance in scene units: ``radiance_network``'s inverse."""
+        n, D = self._n, self.D
+        host = np.zeros(self.I.shape, np.float32)
+        host[: 3 * n, :D] = np.moveaxis(np.asarray(radiance, np.float32), -1, 1).reshape(3 * n, D) / self.scale
+        self.I.assign(host)
 
     def arrays(self, for_view: bool = False) -> dict:
         """``positions`` (N, 3), ``directions`` (D, 3), ``visibility`` (N, D) int (-1: sky),
