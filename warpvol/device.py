@@ -81,3 +81,35 @@ def launch(kernel, dim: int, inputs: list, device: str, split: bool = True, min_
 
 def synchronize(device: str):
     wp.synchronize_device(device)
+
+
+
+def launch_private(kernel, dim: int, inputs: list, out, merge, device: str):
+    """Launch ``kernel`` (arguments: offset, *inputs, out) over ``dim`` threads that combine their
+    results into ``out`` with atomics, ``out`` holding the combination's identity beforehand.
+    Warp's CPU atomics are not atomic across threads, so on the CPU each core takes its share of
+    the threads (interleaved chunks) into a private copy of ``out``, and the copies are folded
+    into ``out`` by the elementwise ``merge(offset, copy, out)``. CUDA runs one launch."""
+    global _pool
+    n = threads() if str(device) == "cpu" else 1
+    if n <= 1 or dim < MIN_SPLIT // 8:
+        wp.launch(kernel, dim=dim, inputs=[0, *inputs, out], device=device)
+        return
+    if _pool is None or _pool._max_workers != n:
+        _pool = ThreadPoolExecutor(max_workers=n)
+    copies = [out] + [wp.clone(out) for _ in range(n - 1)]
+    chunks = 4 * n
+    bounds = [dim * k // chunks for k in range(chunks + 1)]
+
+    def work(w: int):
+        for k in range(w, chunks, n):
+            if bounds[k + 1] > bounds[k]:
+                wp.launch(kernel, dim=bounds[k + 1] - bounds[k], inputs=[bounds[k], *inputs, copies[w]], device=device)
+
+    wp.load_module(kernel.module, device=device)  # once, before the threads launch from it
+    futures = [_pool.submit(work, w) for w in range(1, n)]
+    work(0)
+    for f in futures:
+        f.result()
+    for c in copies[1:]:
+        launch(merge, out.shape[0], [c, out], device)

@@ -6,6 +6,7 @@ import numpy as np
 import warp as wp
 
 from ..scene.model import Camera
+from .raster import RasterView
 
 
 @wp.struct
@@ -41,3 +42,11 @@ def pinhole(camera: Camera) -> PinholeCamera:
     cam.up = wp.vec3(*(u * th))
     cam.width, cam.height = camera.width, camera.height
     return cam
+
+
+def camera_view(cam: PinholeCamera) -> RasterView:
+    """The camera's image as a raster view: pixel (i, j)'s ray is ``camera_ray`` at its centre."""
+    v = RasterView()
+    v.origin, v.fwd, v.right, v.up = cam.origin, cam.forward, cam.right, cam.up
+    v.ortho, v.y_down, v.width, v.height, v.base = 0, 1, cam.width, cam.height, 0
+    return v

@@ -1,5 +1,6 @@
-"""Shadow maps by ray casting a ``wp.Mesh``: perspective (spot), cube (point), orthographic
-(directional); lookups with 2x2 percentage-closer filtering.
+"""Shadow maps: perspective (spot), cube (point), orthographic (directional), each made by
+rasterising the surfaces into its faces (``map_view``, see geometry/raster.py) or by ray
+casting a ``wp.Mesh`` through its texels; lookups with 2x2 percentage-closer filtering.
 
 A map stores, per texel, the distance from the light to the nearest surface along the
 texel's ray (radial distance for perspective and cube maps, distance from the map's plane
@@ -22,6 +23,7 @@ import numpy as np
 import warp as wp
 
 from ..physics.constants import INF
+from .raster import RasterView, view_ray
 
 NONE = wp.constant(0)  # no occluders: every point is lit
 PERSPECTIVE = wp.constant(1)
@@ -52,7 +54,7 @@ def cube_face_axes(face: int):
     helper = wp.vec3(0.0, 1.0, 0.0)
     if axis == 1:
         helper = wp.vec3(0.0, 0.0, 1.0)
-    right = wp.normalize(wp.cross(fwd, helper))
+    right = wp.cross(fwd, helper)  # unit: fwd and helper are orthonormal
     up = wp.cross(right, fwd)
     return fwd, right, up
 
@@ -70,23 +72,61 @@ def cube_face_of(p: wp.vec3) -> int:
 
 
 @wp.func
+def map_view(sm: ShadowMap, face: int) -> RasterView:
+    """The image of one map (``face`` of a cube map, else 0) as a raster view; texel (i, j)
+    is pixel (i, j), row 0 at the bottom."""
+    v = RasterView()
+    v.origin = sm.origin
+    v.fwd = sm.fwd
+    v.right = sm.extent * sm.right
+    v.up = sm.extent * sm.up
+    v.ortho = wp.where(sm.kind == ORTHOGRAPHIC, 1, 0)
+    v.y_down = 0
+    v.width = sm.res
+    v.height = sm.res
+    v.base = sm.offset
+    if sm.kind == CUBE:
+        fwd, right, up = cube_face_axes(face)
+        v.fwd = fwd
+        v.right = right
+        v.up = up
+        v.base = sm.offset + face * sm.res * sm.res
+    return v
+
+
+@wp.func
+def cube_side_mask(p: wp.vec3, face: int) -> int:
+    """Which of cube face ``face``'s frustum planes p (relative to the cube's centre) lies beyond:
+    the four sides |u| = z, |w| = z and the face's own plane z = 0."""
+    k = face / 2
+    z = p[k] * (1.0 - 2.0 * float(face % 2))
+    u = p[(k + 1) % 3]
+    w = p[(k + 2) % 3]
+    return (wp.where(u > z, 1, 0) | wp.where(u < -z, 2, 0) | wp.where(w > z, 4, 0) | wp.where(w < -z, 8, 0)
+            | wp.where(z <= 0.0, 16, 0))
+
+
+@wp.func
+def map_faces_touched(sm: ShadowMap, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> int:
+    """Bit f set when triangle abc may reach face f of the map: for cube maps, unless all three
+    vertices lie beyond one plane of the face's frustum (a cheaper test than the general one
+    of the raster, which rejects most (triangle, face) pairs); other maps have one face."""
+    if sm.kind != CUBE:
+        return 1
+    mask = int(0)
+    for face in range(6):
+        beyond = (cube_side_mask(a - sm.origin, face) & cube_side_mask(b - sm.origin, face)
+                  & cube_side_mask(c - sm.origin, face))
+        mask = mask | wp.where(beyond == 0, 1 << face, 0)
+    return mask
+
+
+@wp.func
 def texel_ray(sm: ShadowMap, texel: int):
     """(origin, unit direction) of the ray through texel ``texel`` (0 .. texels(sm) - 1)."""
     res = sm.res
-    face = texel / (res * res)
     k = texel % (res * res)
-    u = 2.0 * (float(k % res) + 0.5) / float(res) - 1.0
-    v = 2.0 * (float(k / res) + 0.5) / float(res) - 1.0
-    if sm.kind == ORTHOGRAPHIC:
-        return sm.origin + sm.extent * (u * sm.right + v * sm.up), sm.fwd
-    fwd = sm.fwd
-    right = sm.right
-    up = sm.up
-    ext = sm.extent
-    if sm.kind == CUBE:
-        fwd, right, up = cube_face_axes(face)
-        ext = 1.0
-    return sm.origin, wp.normalize(fwd + ext * (u * right + v * up))
+    return view_ray(map_view(sm, texel / (res * res)), k % res, k / res)
 
 
 @wp.func

@@ -10,14 +10,16 @@ view ray (the paper's equation 1):
 
 with v(x) the shadow-map visibility of x from the light. Passes (stages):
 
-* ``shadow_maps``: one map per light, ray cast through a ``wp.Mesh`` (cube map for point
-  lights, perspective for spot, orthographic for directional; ``shadow_map_res``,
-  ``depth_bias``). Skipped when the scene has no surfaces.
-* ``surface``: the visible surface per pixel and the radiance it reflects (the paper's step
-  1, the boundary condition L0). Skipped without surfaces.
-* ``march``: L0 attenuated to the camera, and the in-scattering sum. With interleaved sampling
-  (section 4.1, ``block`` = M > 1) the N = ``steps`` samples of a ray are dealt out over
-  M x M pixels: pixel (i, j) takes samples n = k, k + M^2, ... with k = i mod M + M (j mod M).
+* ``shadow_maps``: one map per light (cube map for point lights, perspective for spot,
+  orthographic for directional; ``shadow_map_res``, ``depth_bias``), made by rasterising the
+  triangles into each face (geometry/raster.py), or with ``raster`` = 0 by casting a ray per
+  texel through the ``wp.Mesh``'s BVH. Skipped when the scene has no surfaces.
+* ``surface``: the visible surface per pixel, rasterised the same way, the radiance it reflects
+  (the paper's step 1, the boundary condition L0) and its term of equation 1, L0 exp(-tau s).
+  Skipped without surfaces.
+* ``march``: the in-scattering sum. With interleaved sampling (section 4.1, ``block`` = M > 1)
+  the N = ``steps`` samples of a ray are dealt out over M x M pixels: pixel (i, j) takes
+  samples n = k, k + M^2, ... with k = i mod M + M (j mod M).
 * ``block_rows``, ``block_cols``: the separable M x M box sum that gathers the N samples
   back (horizontal, then vertical; the window is the M x M pixels around a pixel, shifted
   inside the image at the borders, and holds every residue class k exactly once), then
@@ -30,7 +32,11 @@ Where this departs from the paper, and why:
   ``jitter`` = 1 (no banding: the step pattern is decorrelated between pixels, and the
   block sum averages it out).
 * Marching runs in world space, not in the light's space, so one march serves several
-  lights; the lights' contributions are summed in the same loop.
+  lights; the lights' contributions are summed in the same loop. The transmittances to the
+  light and to the camera share one exponential, and samples a shadow map darkens skip
+  the phase function.
+* The surface term is attenuated in the surface pass rather than in the march, so the march's
+  cost per pixel is only its share of the samples.
 * Any medium of warpvol: homogeneous media use closed-form transmittance; heterogeneous
   ones (a grid) accumulate optical depth at every one of the N steps, and march
   ``shadow_steps`` steps toward each light.
@@ -51,9 +57,11 @@ import numpy as np
 import warp as wp
 
 from .. import device as dev
-from ..geometry.camera import PinholeCamera, camera_ray, pinhole
+from ..geometry.camera import PinholeCamera, camera_ray, camera_view, pinhole
 from ..geometry.mesh import Surfaces, surface_hit
-from ..geometry.shadowmap import ShadowMap, shadow_map_for, shadow_visibility, texel_ray, texel_world_size, texels
+from ..geometry.raster import NO_HIT, RasterView, key_hit, raster_triangle
+from ..geometry.shadowmap import (ShadowMap, map_faces_touched, map_view, shadow_map_for, shadow_visibility, texel_ray, texel_world_size,
+                                  texels)
 from ..media.volume import Media, homogeneous_optical_depth, in_scatter_at, ray_box, scene_bounds, sigma_t_at
 from ..physics.brdf import brdf_eval
 from ..physics.constants import INF, RAY_EPS
@@ -74,6 +82,7 @@ SETTINGS = {
     "shadow_steps": Setting(32, 1, 1 << 16, "steps toward a light through heterogeneous media"),
     "seed": Setting(0, 0, 2**31 - 1, "random seed of the jitter"),
     "spacing": Setting(1, 0, 1, "0: the paper's dl = s / N per ray; 1: dl = (media segment) / N, shared by neighbours"),
+    "raster": Setting(1, 0, 1, "1: shadow maps and the visible surface by rasterising triangles; 0: by BVH ray casts"),
 }
 
 
@@ -97,71 +106,123 @@ def cast_shadow_map(offset: int, s: Surfaces, sm: ShadowMap, depth: wp.array(dty
     depth[sm.offset + tid] = wp.where(q.result, q.t, INF)
 
 
+@wp.kernel
+def raster_shadow_map(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int), sm: ShadowMap,
+                      faces: int, no_keys: wp.array(dtype=wp.int64), depth: wp.array(dtype=float)):
+    """One thread per triangle: its nearest distances into the texels of each face of the map."""
+    f = wp.tid() + offset
+    a = points[indices[3 * f]]
+    b = points[indices[3 * f + 1]]
+    c = points[indices[3 * f + 2]]
+    touched = map_faces_touched(sm, a, b, c)
+    for face in range(faces):
+        if (touched >> face) & 1 == 1:
+            raster_triangle(map_view(sm, face), a, b, c, f, 0, 0.0, depth, no_keys)
+
+
+@wp.kernel
+def raster_visible(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int), view: RasterView,
+                   t_scale: float, no_depth: wp.array(dtype=float), keys: wp.array(dtype=wp.int64)):
+    """One thread per triangle: (distance, triangle) keys of the nearest surface per pixel."""
+    f = wp.tid() + offset
+    raster_triangle(view, points[indices[3 * f]], points[indices[3 * f + 1]], points[indices[3 * f + 2]], f, 1,
+                    t_scale, no_depth, keys)
+
+
+@wp.kernel
+def min_into_float(offset: int, src: wp.array(dtype=float), dst: wp.array(dtype=float)):
+    tid = wp.tid() + offset
+    dst[tid] = wp.min(dst[tid], src[tid])
+
+
+@wp.kernel
+def min_into_int64(offset: int, src: wp.array(dtype=wp.int64), dst: wp.array(dtype=wp.int64)):
+    tid = wp.tid() + offset
+    dst[tid] = wp.min(dst[tid], src[tid])
+
+
 @wp.func
 def light_arriving(m: Media, lights: wp.array(dtype=Light), maps: wp.array(dtype=ShadowMap),
                    depth: wp.array(dtype=float), l: int, x: wp.vec3, n: wp.vec3, shadow_steps: int):
-    """(wi, E v T): direction to light l and the irradiance reaching x past surfaces and media.
-    On a surface, ``n`` is its normal and the map is read half a texel off it (normal offset);
-    in the medium n = 0."""
+    """(wi, E v, tau): the direction to light l, the irradiance it sends to x past the surfaces
+    (shadow-map visibility v), and the optical depth of the media on the way, left for the caller
+    to put into one exponential with its own. On a surface, ``n`` is its normal and the map is
+    read half a texel off it (normal offset); in the medium n = 0."""
     wi, dist, e = light_incident(lights[l], x)
     if dist <= 0.0:
-        return wi, wp.vec3(0.0)
-    v = shadow_visibility(maps[l], depth, x + (0.5 * texel_world_size(maps[l], x)) * n)
+        return wi, wp.vec3(0.0), wp.vec3(0.0)
+    p = x
+    if n[0] != 0.0 or n[1] != 0.0 or n[2] != 0.0:
+        p = x + (0.5 * texel_world_size(maps[l], x)) * n
+    v = shadow_visibility(maps[l], depth, p)
     if v <= 0.0:
-        return wi, wp.vec3(0.0)
-    tr = transmittance_rgb(marched_optical_depth(m, x, wi, 0.0, dist, shadow_steps))
-    return wi, wp.cw_mul(e * v, tr)
+        return wi, wp.vec3(0.0), wp.vec3(0.0)
+    return wi, e * v, marched_optical_depth(m, x, wi, 0.0, dist, shadow_steps)
 
 
 @wp.kernel
 def shade_visible_surface(offset: int, cam: PinholeCamera, m: Media, s: Surfaces, lights: wp.array(dtype=Light),
                           maps: wp.array(dtype=ShadowMap), depth: wp.array(dtype=float), shadow_steps: int,
+                          view_steps: int, background: wp.vec3, keys: wp.array(dtype=wp.int64),
+                          points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int),
                           t_hit: wp.array(dtype=float), radiance: wp.array(dtype=wp.vec3)):
-    """The paper's step 1: the visible surface per pixel and the radiance it reflects toward the
-    camera (direct light through the shadow maps and the media), before the view ray's attenuation."""
+    """The paper's step 1: the visible surface per pixel (from the rasterised ``keys``, or a ray
+    cast when there are none) and the radiance it reflects (direct light through the shadow maps
+    and the media), then its part of equation 1, L0 exp(-tau s): attenuated along the view ray
+    (heterogeneous media by ``view_steps`` midpoints, as the march). Pixels without a surface
+    take the attenuated ``background``."""
     tid = wp.tid() + offset
     d = camera_ray(cam, float(tid % cam.width) + 0.5, float(tid / cam.width) + 0.5)
-    hit, t, n, f = surface_hit(s, cam.origin, d, INF)
-    L0 = wp.vec3(0.0)
+    hit = bool(False)
+    t = float(INF)
+    n = wp.vec3(0.0, 1.0, 0.0)
+    f = int(-1)
+    if keys.shape[0] > 1:
+        hit, t, n, f = key_hit(keys[tid], points, indices, cam.origin, d)
+    else:
+        hit, t, n, f = surface_hit(s, cam.origin, d, INF)
+    L0 = background
     if hit:
+        L0 = wp.vec3(0.0)
         n = wp.where(wp.dot(n, d) < 0.0, n, -n)
         p = cam.origin + t * d + RAY_EPS * n
         for l in range(lights.shape[0]):
-            wi, e = light_arriving(m, lights, maps, depth, l, p, n, shadow_steps)
+            wi, e, tau = light_arriving(m, lights, maps, depth, l, p, n, shadow_steps)
             cos_l = wp.dot(n, wi)
             if cos_l > 0.0:
-                L0 += cos_l * wp.cw_mul(brdf_eval(s.material[f], n, -d, wi), e)
+                L0 += cos_l * wp.cw_mul(brdf_eval(s.material[f], n, -d, wi), wp.cw_mul(e, transmittance_rgb(tau)))
     t_hit[tid] = t
-    radiance[tid] = L0
+    a, b = ray_box(cam.origin, d, m.all_min, m.all_max)
+    radiance[tid] = wp.cw_mul(L0, transmittance_rgb(marched_optical_depth(m, cam.origin, d, 0.0, wp.min(b, t),
+                                                                          view_steps)))
 
 
 @wp.kernel
 def march_shafts(offset: int, cam: PinholeCamera, m: Media, lights: wp.array(dtype=Light),
                  maps: wp.array(dtype=ShadowMap), depth: wp.array(dtype=float), t_hit: wp.array(dtype=float),
-                 radiance: wp.array(dtype=wp.vec3), background: wp.vec3, st: ShaftSettings,
-                 surface_out: wp.array(dtype=wp.vec3), partial_out: wp.array(dtype=wp.vec3)):
+                 background: wp.vec3, st: ShaftSettings, surface_out: wp.array(dtype=wp.vec3),
+                 partial_out: wp.array(dtype=wp.vec3)):
+    """This pixel's share of the in-scattering sum (its samples k = k0, k0 + M^2, ...). With
+    surfaces, the surface term was attenuated by the surface pass; without, the background is
+    attenuated here into ``surface_out``."""
     tid = wp.tid() + offset
     px = tid % cam.width
     py = tid / cam.width
     o = cam.origin
     d = camera_ray(cam, float(px) + 0.5, float(py) + 0.5)
     ts = INF
-    L0 = background
     if st.has_depth == 1:
         ts = t_hit[tid]
-        if ts < INF:
-            L0 = radiance[tid]
-
     a, b = ray_box(o, d, m.all_min, m.all_max)
     ta = wp.max(a, 0.0)
     tb = wp.min(b, ts)
-    t_end = tb  # where the samples are spread: up to the surface (paper) or through the media
-    if st.spacing == 1:
-        t_end = b
-    hetero = m.het_majorant[0] > 0.0 or m.het_majorant[1] > 0.0 or m.het_majorant[2] > 0.0
+    if st.has_depth == 0:
+        surface_out[tid] = wp.cw_mul(background, transmittance_rgb(marched_optical_depth(m, o, d, 0.0, b, st.steps)))
     acc = wp.vec3(0.0)
-    tau_end = wp.vec3(0.0)
-    if ta < tb:
+    if ta < tb and st.scattering == 1:
+        t_end = tb  # where the samples are spread: up to the surface (paper) or through the media
+        if st.spacing == 1:
+            t_end = b
         n_steps = st.steps
         dl = (t_end - ta) / float(n_steps)
         stride = st.block * st.block
@@ -170,22 +231,21 @@ def march_shafts(offset: int, cam: PinholeCamera, m: Media, lights: wp.array(dty
         if st.jitter == 1:
             rng = wp.rand_init(st.seed, tid)
             u = wp.randf(rng)
+        hetero = m.het_majorant[0] > 0.0 or m.het_majorant[1] > 0.0 or m.het_majorant[2] > 0.0
         if not hetero:
-            if st.scattering == 1:
-                for k in range(k0, n_steps, stride):
-                    c0 = ta + float(k) * dl  # this sample's cell, cut at the surface
-                    if c0 >= tb:
-                        break
-                    w = wp.min(1.0, (tb - c0) / dl) * dl
-                    lk = c0 + u * w
-                    x = o + lk * d
-                    li = wp.vec3(0.0)
-                    for l in range(lights.shape[0]):
-                        wi, e = light_arriving(m, lights, maps, depth, l, x, wp.vec3(0.0), st.shadow_steps)
-                        li += wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e)
-                    tv = transmittance_rgb(homogeneous_optical_depth(m, o, d, 0.0, lk))
-                    acc += wp.cw_mul(tv, li) * w
-            tau_end = homogeneous_optical_depth(m, o, d, 0.0, tb)
+            for k in range(k0, n_steps, stride):
+                c0 = ta + float(k) * dl  # this sample's cell, cut at the surface
+                if c0 >= tb:
+                    break
+                w = wp.min(1.0, (tb - c0) / dl) * dl
+                lk = c0 + u * w
+                x = o + lk * d
+                tau_v = homogeneous_optical_depth(m, o, d, 0.0, lk)
+                for l in range(lights.shape[0]):
+                    wi, e, tau = light_arriving(m, lights, maps, depth, l, x, wp.vec3(0.0), st.shadow_steps)
+                    if e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0:
+                        li = wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e)
+                        acc += wp.cw_mul(transmittance_rgb(tau_v + tau), li) * w
         else:
             # optical depth from the camera, accumulated at every step; lights only at this pixel's
             tau = homogeneous_optical_depth(m, o, d, 0.0, ta)
@@ -197,16 +257,14 @@ def march_shafts(offset: int, cam: PinholeCamera, m: Media, lights: wp.array(dty
                 lk = c0 + u * w
                 x = o + lk * d
                 sig = sigma_t_at(m, x, True)
-                if st.scattering == 1 and k % stride == k0:
-                    li = wp.vec3(0.0)
+                if k % stride == k0:
+                    tau_v = tau + homogeneous_optical_depth(m, o, d, ta, lk) + sig * (u * w)
                     for l in range(lights.shape[0]):
-                        wi, e = light_arriving(m, lights, maps, depth, l, x, wp.vec3(0.0), st.shadow_steps)
-                        li += wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e)
-                    tv = transmittance_rgb(tau + homogeneous_optical_depth(m, o, d, ta, lk) + sig * (u * w))
-                    acc += wp.cw_mul(tv, li) * w
+                        wi, e, tau_l = light_arriving(m, lights, maps, depth, l, x, wp.vec3(0.0), st.shadow_steps)
+                        if e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0:
+                            li = wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e)
+                            acc += wp.cw_mul(transmittance_rgb(tau_v + tau_l), li) * w
                 tau += sig * w
-            tau_end = tau + homogeneous_optical_depth(m, o, d, ta, tb)
-    surface_out[tid] = wp.cw_mul(L0, transmittance_rgb(tau_end))
     partial_out[tid] = acc
 
 
@@ -263,8 +321,8 @@ def sample_lit_slice(offset: int, m: Media, lights: wp.array(dtype=Light), maps:
     x = corner + (float(tid % res) + 0.5) / float(res) * edge_u + (float(tid / res) + 0.5) / float(res) * edge_v
     li = wp.vec3(0.0)
     for l in range(lights.shape[0]):
-        wi, e = light_arriving(m, lights, maps, depth, l, x, wp.vec3(0.0), shadow_steps)
-        li += wp.cw_mul(in_scatter_at(m, x, wp.dot(view, wi)), e)
+        wi, e, tau = light_arriving(m, lights, maps, depth, l, x, wp.vec3(0.0), shadow_steps)
+        li += wp.cw_mul(in_scatter_at(m, x, wp.dot(view, wi)), wp.cw_mul(e, transmittance_rgb(tau)))
     out[tid] = li
 
 
@@ -279,6 +337,8 @@ class LightShafts(Technique):
         self.uploads = SceneUploads(self)
         self.maps = None
         self.depth = wp.full(1, INF, dtype=float, device=device)
+        self._no_keys = wp.full(1, NO_HIT, dtype=wp.int64, device=device)  # "ray cast instead"
+        self._arrays = {}
         self.t_hit = self.radiance = None
         self.surface = self.partial = self.rows = self.image = None
 
@@ -292,9 +352,10 @@ class LightShafts(Technique):
         occluders = bool(scene.surfaces)
         interleaved = self.effective_block() > 1 and self.settings["scattering"] == 1 and bool(scene.media)
         return self.uploads.stages() + [
-            Stage("shadow_maps", self._shadow_maps, reads=("lights",), settings=("shadow_map_res", "depth_bias"),
+            Stage("shadow_maps", self._shadow_maps, reads=("lights",),
+                  settings=("shadow_map_res", "depth_bias", "raster"),
                   after=("surfaces", "lights"), needed=occluders and bool(scene.lights)),
-            Stage("surface", self._surface, reads=("camera",), settings=("shadow_steps",),
+            Stage("surface", self._surface, reads=("camera", "background"), settings=("shadow_steps", "raster", "steps"),
                   after=("medium", "surfaces", "lights", "shadow_maps"), needed=occluders),
             Stage("march", self._march, reads=("camera", "background"),
                   settings=("steps", "block", "jitter", "scattering", "shadow_steps", "seed", "spacing"),
@@ -313,12 +374,25 @@ class LightShafts(Technique):
             offset += texels(sm.kind, res)
         return out
 
+    def _mesh_arrays(self):
+        mesh = self.uploads._surfaces.mesh
+        return mesh.points, mesh.indices
+
     def _shadow_maps(self):
         structs = self._map_structs(occluders=True)
         total = sum(texels(sm.kind, sm.res) for sm in structs)
-        self.depth = wp.empty(max(total, 1), dtype=float, device=self.device)
-        for sm in structs:
-            dev.launch(cast_shadow_map, texels(sm.kind, sm.res), [self.uploads.surfaces, sm, self.depth], self.device)
+        if self.settings["raster"]:
+            self.depth = wp.full(max(total, 1), INF, dtype=float, device=self.device)
+            points, indices = self._mesh_arrays()
+            for sm in structs:
+                faces = texels(sm.kind, sm.res) // (sm.res * sm.res)
+                dev.launch_private(raster_shadow_map, indices.shape[0] // 3, [points, indices, sm, faces, self._no_keys],
+                                   self.depth, min_into_float, self.device)
+        else:
+            self.depth = wp.empty(max(total, 1), dtype=float, device=self.device)
+            for sm in structs:
+                dev.launch(cast_shadow_map, texels(sm.kind, sm.res), [self.uploads.surfaces, sm, self.depth],
+                           self.device)
         self.maps = wp.array(structs, dtype=ShadowMap, device=self.device)
 
     def _no_shadow_maps(self):
@@ -326,14 +400,36 @@ class LightShafts(Technique):
             self.maps = wp.array(self._map_structs(occluders=False) or [ShadowMap()], dtype=ShadowMap,
                                  device=self.device)
 
+    def _scratch(self, name: str, n: int, dtype, fill=None):
+        """An intermediate array kept from frame to frame (allocating and first touching ~6 MB per
+        frame costs milliseconds on the CPU); ``fill`` resets it."""
+        arr = self._arrays.get(name)
+        if arr is None or arr.shape[0] != n:
+            arr = self._arrays[name] = wp.empty(n, dtype=dtype, device=self.device)
+        if fill is not None:
+            arr.fill_(fill)
+        return arr
+
     def _surface(self):
-        cam, u = self.scene.camera, self.uploads
+        scene, cam, u = self.scene, self.scene.camera, self.uploads
         npix = cam.width * cam.height
         self._no_shadow_maps()
-        self.t_hit = wp.empty(npix, dtype=float, device=self.device)
-        self.radiance = wp.empty(npix, dtype=wp.vec3, device=self.device)
-        dev.launch(shade_visible_surface, npix, [pinhole(cam), u.media.struct, u.surfaces, u.lights, self.maps,
-                                                 self.depth, self.settings["shadow_steps"], self.t_hit,
+        self.t_hit = self._scratch("t_hit", npix, float)
+        self.radiance = self._scratch("radiance", npix, wp.vec3)
+        view = pinhole(cam)
+        keys = self._no_keys
+        points, indices = self._mesh_arrays()
+        if self.settings["raster"]:
+            keys = self._scratch("keys", npix, wp.int64, fill=NO_HIT)
+            lo, hi = scene_bounds(scene)
+            corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+            t_far = float(np.max(np.linalg.norm(corners - np.asarray(cam.origin, float), axis=1)))
+            dev.launch_private(raster_visible, indices.shape[0] // 3,
+                               [points, indices, camera_view(view), 2.0**31 / t_far, self.depth], keys, min_into_int64,
+                               self.device)
+        dev.launch(shade_visible_surface, npix, [view, u.media.struct, u.surfaces, u.lights, self.maps, self.depth,
+                                                 self.settings["shadow_steps"], self.settings["steps"],
+                                                 wp.vec3(*scene.background), keys, points, indices, self.t_hit,
                                                  self.radiance], self.device)
 
     def _march(self):
@@ -342,26 +438,26 @@ class LightShafts(Technique):
         npix = cam.width * cam.height
         has_depth = bool(scene.surfaces)
         self._no_shadow_maps()
-        if not has_depth:
+        if has_depth:
+            self.surface = self.radiance  # attenuated by the surface pass
+        else:
             self.t_hit = self.depth
-            self.radiance = wp.zeros(1, dtype=wp.vec3, device=self.device)
+            self.surface = self._scratch("surface", npix, wp.vec3)
         st = ShaftSettings()
         st.steps, st.block, st.jitter = cfg["steps"], self.effective_block(), cfg["jitter"]
         st.scattering, st.shadow_steps, st.seed = cfg["scattering"], cfg["shadow_steps"], cfg["seed"]
         st.spacing = cfg["spacing"]
         st.has_depth = int(has_depth)
-        self.surface = wp.empty(npix, dtype=wp.vec3, device=self.device)
-        self.partial = wp.empty(npix, dtype=wp.vec3, device=self.device)
-        dev.launch(march_shafts, npix, [pinhole(cam), u.media.struct, u.lights, self.maps, self.depth,
-                                        self.t_hit, self.radiance, wp.vec3(*scene.background), st,
-                                        self.surface, self.partial], self.device)
+        self.partial = self._scratch("partial", npix, wp.vec3)
+        dev.launch(march_shafts, npix, [pinhole(cam), u.media.struct, u.lights, self.maps, self.depth, self.t_hit,
+                                        wp.vec3(*scene.background), st, self.surface, self.partial], self.device)
         if st.block == 1 or not cfg["scattering"] or not scene.media:
-            self.image = wp.empty(npix, dtype=wp.vec3, device=self.device)
+            self.image = wp.empty(npix, dtype=wp.vec3, device=self.device)  # the frame's own: not reused
             dev.launch(add_images, npix, [self.surface, self.partial, self.image], self.device)
 
     def _block_rows(self):
         cam = self.scene.camera
-        self.rows = wp.empty(cam.width * cam.height, dtype=wp.vec3, device=self.device)
+        self.rows = self._scratch("rows", cam.width * cam.height, wp.vec3)
         dev.launch(block_sum_rows, cam.width * cam.height, [self.partial, cam.width, self.effective_block(), self.rows],
                    self.device)
 

@@ -1,0 +1,231 @@
+"""Triangle rasterisation for views from one point (pinhole cameras, shadow-map faces) or
+along one direction (orthographic maps): the visible surface of every pixel without a BVH.
+
+A ``RasterView`` names an image of ``width`` x ``height`` pixels. Pixel (i, j) has image
+coordinates sx = 2 (i + 1/2) / width - 1 and sy = 2 (j + 1/2) / height - 1 (negated when
+``y_down``: row 0 at the top, as in camera images). Its ray is
+
+* perspective: from ``origin`` along normalize(fwd + sx right + sy up);
+* orthographic: from origin + sx right + sy up along fwd,
+
+with ``right`` and ``up`` scaled to the half extent of the image (so fwd, right and up are
+orthogonal, fwd a unit vector). ``view_ray`` is the one definition of a pixel's ray:
+camera rays and shadow-map texel rays are both made by it, so the rasteriser finds exactly
+the surface that a ray cast through the pixel centre would.
+
+Rasterising a triangle (``triangle_pixels``) bounds the pixels whose centres it can
+cover: its vertices are projected, after clipping the triangle to the half-space in front
+of a perspective view's origin (a triangle crossing the origin's plane otherwise projects
+to an unbounded region). Each pixel of that box then intersects its own ray with the
+triangle: the three edge functions (linear in the image coordinates) say whether the ray
+passes through it, and its plane gives the distance. The nearest hit is kept with an atomic
+minimum, so the result does not depend on the order in which triangles arrive.
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+from ..physics.constants import INF
+
+NEAR = wp.constant(1.0e-6)
+BOX_SLACK = wp.constant(1.0e-3)  # pixels: a triangle's box is widened by this much for rounding
+EDGE_SLACK = wp.constant(1.0e-6)  # barycentric slack: a pixel centre on a shared edge is covered by both  # a perspective view clips triangles to depth > NEAR (scene units)
+
+
+@wp.struct
+class RasterView:
+    origin: wp.vec3
+    fwd: wp.vec3  # unit
+    right: wp.vec3  # half width of the image (at unit depth for perspective views)
+    up: wp.vec3  # half height
+    ortho: int
+    y_down: int  # 1: row 0 at the top
+    width: int
+    height: int
+    base: int  # index of pixel (0, 0) in the output array
+
+
+@wp.func
+def image_coords(v: RasterView, i: int, j: int):
+    """(sx, sy) in [-1, 1]^2 of the centre of pixel (i, j)."""
+    sx = 2.0 * (float(i) + 0.5) / float(v.width) - 1.0
+    sy = 2.0 * (float(j) + 0.5) / float(v.height) - 1.0
+    if v.y_down == 1:
+        sy = 1.0 - 2.0 * (float(j) + 0.5) / float(v.height)
+    return sx, sy
+
+
+@wp.func
+def view_ray(v: RasterView, i: int, j: int):
+    """(origin, unit direction) of the ray through the centre of pixel (i, j)."""
+    sx, sy = image_coords(v, i, j)
+    if v.ortho == 1:
+        return v.origin + sx * v.right + sy * v.up, v.fwd
+    return v.origin, wp.normalize(v.fwd + sx * v.right + sy * v.up)
+
+
+@wp.func
+def view_depth(v: RasterView, p: wp.vec3) -> float:
+    return wp.dot(p - v.origin, v.fwd)
+
+
+@wp.func
+def image_point(v: RasterView, p: wp.vec3) -> wp.vec2:
+    """Where p lands in pixel units (the centre of pixel (i, j) at (i, j)); p in front of the view."""
+    q = p - v.origin
+    sx = wp.dot(q, v.right) / wp.dot(v.right, v.right)
+    sy = wp.dot(q, v.up) / wp.dot(v.up, v.up)
+    if v.ortho == 0:
+        z = wp.dot(q, v.fwd)
+        sx = sx / z
+        sy = sy / z
+    if v.y_down == 1:
+        sy = -sy
+    # clamped well outside the image, so far points (and ones on the clip plane) stay finite ints
+    return wp.vec2(wp.clamp((sx + 1.0) * 0.5 * float(v.width) - 0.5, -2.0, float(v.width) + 1.0),
+                   wp.clamp((sy + 1.0) * 0.5 * float(v.height) - 0.5, -2.0, float(v.height) + 1.0))
+
+
+@wp.func
+def edge_bounds(v: RasterView, p: wp.vec3, q: wp.vec3, lo: wp.vec2, hi: wp.vec2):
+    """Grow the box (lo, hi) by vertex p and, where edge pq crosses the clip plane, by the crossing."""
+    zp = view_depth(v, p)
+    zq = view_depth(v, q)
+    if v.ortho == 1 or zp > NEAR:
+        x = image_point(v, p)
+        lo = wp.min(lo, x)
+        hi = wp.max(hi, x)
+    if v.ortho == 0 and (zp > NEAR) != (zq > NEAR):
+        x = image_point(v, p + (q - p) * ((NEAR - zp) / (zq - zp)))
+        lo = wp.min(lo, x)
+        hi = wp.max(hi, x)
+    return lo, hi
+
+
+@wp.func
+def outside_sides(v: RasterView, p: wp.vec3) -> int:
+    """Bit mask of the sides of the view's frustum that p lies beyond: left, right, bottom, top,
+    and (perspective) behind the clip plane."""
+    q = p - v.origin
+    x = wp.dot(q, v.right)  # sx |right|^2 z
+    y = wp.dot(q, v.up)
+    zx = wp.dot(v.right, v.right)
+    zy = wp.dot(v.up, v.up)
+    z = wp.where(v.ortho == 0, wp.dot(q, v.fwd), 1.0)
+    zx = zx * z
+    zy = zy * z
+    # branch-free: most triangles miss most views, and these tests are data-dependent
+    mask = wp.where(x < -zx, 1, 0) | wp.where(x > zx, 2, 0) | wp.where(y < -zy, 4, 0) | wp.where(y > zy, 8, 0)
+    mask = mask | wp.where(v.ortho == 0 and z <= NEAR, 16, 0)
+    return mask
+
+
+@wp.func
+def triangle_pixels(v: RasterView, a: wp.vec3, b: wp.vec3, c: wp.vec3):
+    """(i0, j0, i1, j1): the pixels whose centres triangle abc may cover (empty: i0 > i1)."""
+    if (outside_sides(v, a) & outside_sides(v, b) & outside_sides(v, c)) != 0:
+        return 1, 1, 0, 0  # all three beyond one side of the frustum
+    lo = wp.vec2(INF)
+    hi = wp.vec2(-INF)
+    lo, hi = edge_bounds(v, a, b, lo, hi)
+    lo, hi = edge_bounds(v, b, c, lo, hi)
+    lo, hi = edge_bounds(v, c, a, lo, hi)
+    if lo[0] > hi[0]:  # wholly behind a perspective view
+        return 1, 1, 0, 0
+    # pixel centres inside the box, which is widened by BOX_SLACK pixels for rounding
+    i0 = wp.max(int(wp.ceil(lo[0] - BOX_SLACK)), 0)
+    j0 = wp.max(int(wp.ceil(lo[1] - BOX_SLACK)), 0)
+    i1 = wp.min(int(wp.floor(hi[0] + BOX_SLACK)), v.width - 1)
+    j1 = wp.min(int(wp.floor(hi[1] + BOX_SLACK)), v.height - 1)
+    return i0, j0, i1, j1
+
+
+@wp.func
+def edge_coeffs(v: RasterView, p: wp.vec3, q: wp.vec3, w: wp.vec3):
+    """(c0, c1, c2): the edge function of edge pq, c0 + c1 sx + sy c2, whose sign tells on which
+    side of the edge the ray of image point (sx, sy) passes; w is the third vertex."""
+    if v.ortho == 1:  # the ray from origin + sx right + sy up along fwd, against the prism over pq
+        m = wp.cross(v.fwd, q - p)
+        return wp.vec3(wp.dot(v.origin - p, m), wp.dot(v.right, m), wp.dot(v.up, m))
+    n = wp.cross(p - v.origin, q - v.origin)  # the plane through the origin and pq
+    return wp.vec3(wp.dot(v.fwd, n), wp.dot(v.right, n), wp.dot(v.up, n))
+
+
+@wp.func
+def triangle_edges(v: RasterView, a: wp.vec3, b: wp.vec3, c: wp.vec3):
+    """The three edge functions of abc, signed so that rays through the triangle make all three
+    positive, and whether the triangle faces the view at all (not edge-on)."""
+    e0 = edge_coeffs(v, a, b, c)
+    e1 = edge_coeffs(v, b, c, a)
+    e2 = edge_coeffs(v, c, a, b)
+    # at the centroid's image point every edge function is a third of this orientation
+    orient = wp.dot(v.fwd, wp.cross(b - a, c - a))
+    if v.ortho == 0:
+        orient = wp.dot(a - v.origin, wp.cross(b - v.origin, c - v.origin))
+    s = wp.where(orient < 0.0, -1.0, 1.0)
+    return s * e0, s * e1, s * e2, orient != 0.0
+
+
+NO_HIT = wp.constant(wp.int64(0x7FFFFFFFFFFFFFFF))  # key of a pixel no triangle covers
+KEY_LIMIT = wp.constant(2.0e9)  # quantised distances are clamped below 2^31
+
+
+@wp.func
+def raster_triangle(v: RasterView, a: wp.vec3, b: wp.vec3, c: wp.vec3, face: int, with_keys: int, t_scale: float,
+                    depth: wp.array(dtype=float), keys: wp.array(dtype=wp.int64)):
+    """Rasterise triangle ``face`` (abc) into view v: per covered pixel, the nearest distance
+    into ``depth``, or (with_keys = 1) the nearest (distance x t_scale, face) as one int64 key
+    into ``keys``."""
+    i0, j0, i1, j1 = triangle_pixels(v, a, b, c)
+    if i0 > i1 or j0 > j1:
+        return
+    e0, e1, e2, facing = triangle_edges(v, a, b, c)
+    if not facing:
+        return
+    # distance to abc's plane along the pixel's unit ray: num |D| / (D . n) with D = fwd + sx right +
+    # sy up (perspective), or (num - sx right . n - sy up . n) / (fwd . n) (orthographic)
+    n = wp.cross(b - a, c - a)
+    num = wp.dot(a - v.origin, n)
+    den = wp.vec3(wp.dot(v.fwd, n), wp.dot(v.right, n), wp.dot(v.up, n))
+    rr = wp.dot(v.right, v.right)
+    uu = wp.dot(v.up, v.up)
+    dsx = 2.0 / float(v.width)
+    for j in range(j0, j1 + 1):
+        sx0, sy = image_coords(v, i0, j)
+        r0 = e0[0] + sy * e0[2]
+        r1 = e1[0] + sy * e1[2]
+        r2 = e2[0] + sy * e2[2]
+        for i in range(i0, i1 + 1):
+            # the edge functions at the pixel centre: all >= 0 where its ray passes through abc
+            sx = sx0 + float(i - i0) * dsx
+            w0 = r0 + sx * e0[1]
+            w1 = r1 + sx * e1[1]
+            w2 = r2 + sx * e2[1]
+            tol = -EDGE_SLACK * (wp.abs(w0) + wp.abs(w1) + wp.abs(w2))
+            if w0 >= tol and w1 >= tol and w2 >= tol:
+                t = float(0.0)
+                if v.ortho == 1:
+                    t = (num - sx * den[1] - sy * den[2]) / den[0]
+                else:
+                    t = num * wp.sqrt(1.0 + sx * sx * rr + sy * sy * uu) / (den[0] + sx * den[1] + sy * den[2])
+                if t > 0.0:
+                    k = v.base + j * v.width + i
+                    if with_keys == 1:
+                        q = wp.int64(wp.min(t * t_scale, KEY_LIMIT))
+                        wp.atomic_min(keys, k, (q << wp.int64(32)) | wp.int64(face))
+                    else:
+                        wp.atomic_min(depth, k, t)
+
+
+@wp.func
+def key_hit(key: wp.int64, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int), o: wp.vec3, d: wp.vec3):
+    """The surface a pixel's key names: (hit, t, unit geometric normal, face), as ``surface_hit``."""
+    if key == NO_HIT:
+        return False, INF, wp.vec3(0.0, 1.0, 0.0), int(-1)
+    f = int(key & wp.int64(0xFFFFFFFF))
+    a = points[indices[3 * f]]
+    b = points[indices[3 * f + 1]]
+    c = points[indices[3 * f + 2]]
+    n = wp.normalize(wp.cross(b - a, c - a))
+    return True, wp.dot(a - o, n) / wp.dot(d, n), n, f  # the ray meets the triangle's plane there
