@@ -28,9 +28,9 @@ import warp as wp
 
 from ..physics.constants import INF
 
-NEAR = wp.constant(1.0e-6)
+NEAR = wp.constant(1.0e-6)  # a perspective view clips triangles to depth > NEAR (scene units)
 BOX_SLACK = wp.constant(1.0e-3)  # pixels: a triangle's box is widened by this much for rounding
-EDGE_SLACK = wp.constant(1.0e-6)  # barycentric slack: a pixel centre on a shared edge is covered by both  # a perspective view clips triangles to depth > NEAR (scene units)
+EDGE_SLACK = wp.constant(1.0e-6)  # barycentric slack: a pixel centre on a shared edge is covered by both
 
 
 @wp.struct

@@ -22,7 +22,6 @@ import math
 import numpy as np
 import warp as wp
 
-from ..physics.constants import INF
 from .raster import RasterView, view_ray
 
 NONE = wp.constant(0)  # no occluders: every point is lit

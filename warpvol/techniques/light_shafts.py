@@ -60,8 +60,8 @@ from .. import device as dev
 from ..geometry.camera import PinholeCamera, camera_ray, camera_view, pinhole
 from ..geometry.mesh import Surfaces, surface_hit
 from ..geometry.raster import NO_HIT, RasterView, key_hit, raster_triangle
-from ..geometry.shadowmap import (ShadowMap, map_faces_touched, map_view, shadow_map_for, shadow_visibility, texel_ray, texel_world_size,
-                                  texels)
+from ..geometry.shadowmap import (ShadowMap, map_faces_touched, map_view, shadow_map_for, shadow_visibility,
+                                  texel_ray, texel_world_size, texels)
 from ..media.volume import Media, homogeneous_optical_depth, in_scatter_at, ray_box, scene_bounds, sigma_t_at
 from ..physics.brdf import brdf_eval
 from ..physics.constants import INF, RAY_EPS
@@ -192,8 +192,8 @@ def shade_visible_surface(offset: int, cam: PinholeCamera, m: Media, s: Surfaces
             if cos_l > 0.0:
                 L0 += cos_l * wp.cw_mul(brdf_eval(s.material[f], n, -d, wi), wp.cw_mul(e, transmittance_rgb(tau)))
     t_hit[tid] = t
-    a, b = ray_box(cam.origin, d, m.all_min, m.all_max)
-    radiance[tid] = wp.cw_mul(L0, transmittance_rgb(marched_optical_depth(m, cam.origin, d, 0.0, wp.min(b, t),
+    _t_in, t_out = ray_box(cam.origin, d, m.all_min, m.all_max)
+    radiance[tid] = wp.cw_mul(L0, transmittance_rgb(marched_optical_depth(m, cam.origin, d, 0.0, wp.min(t_out, t),
                                                                           view_steps)))
 
 
@@ -355,7 +355,8 @@ class LightShafts(Technique):
             Stage("shadow_maps", self._shadow_maps, reads=("lights",),
                   settings=("shadow_map_res", "depth_bias", "raster"),
                   after=("surfaces", "lights"), needed=occluders and bool(scene.lights)),
-            Stage("surface", self._surface, reads=("camera", "background"), settings=("shadow_steps", "raster", "steps"),
+            Stage("surface", self._surface, reads=("camera", "background"),
+                  settings=("shadow_steps", "raster", "steps"),
                   after=("medium", "surfaces", "lights", "shadow_maps"), needed=occluders),
             Stage("march", self._march, reads=("camera", "background"),
                   settings=("steps", "block", "jitter", "scattering", "shadow_steps", "seed", "spacing"),
@@ -386,8 +387,8 @@ class LightShafts(Technique):
             points, indices = self._mesh_arrays()
             for sm in structs:
                 faces = texels(sm.kind, sm.res) // (sm.res * sm.res)
-                dev.launch_private(raster_shadow_map, indices.shape[0] // 3, [points, indices, sm, faces, self._no_keys],
-                                   self.depth, min_into_float, self.device)
+                dev.launch_private(raster_shadow_map, indices.shape[0] // 3,
+                                   [points, indices, sm, faces, self._no_keys], self.depth, min_into_float, self.device)
         else:
             self.depth = wp.empty(max(total, 1), dtype=float, device=self.device)
             for sm in structs:
