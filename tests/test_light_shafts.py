@@ -149,6 +149,27 @@ def test_rasterising_finds_what_ray_casting_finds(scene, device):
     assert np.abs(img - img0).mean() < 1e-4 * img0.mean()
 
 
+def test_split_long_edges_keeps_each_face_and_bounds_the_pieces():
+    """Splitting for the rasteriser: every edge ends up no longer than the bound, each face's
+    pieces tile it (their areas sum to its area, and every piece lies in its plane), and a
+    face that is short enough is kept as it is."""
+    from warpvol.geometry.raster import split_long_edges
+
+    v = np.array([[0, 0, 0], [10, 0, 0], [0, 6, 0], [0, 0, 1], [0.3, 0, 1], [0, 0.2, 1.1]], float)
+    f = np.array([[0, 1, 2], [3, 4, 5]])
+    pts, parent = split_long_edges(v, f, max_edge=1.0)
+    tri = pts.reshape(-1, 3, 3).astype(float)
+    assert np.linalg.norm(tri - np.roll(tri, -1, axis=1), axis=2).max() <= 1.0
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    whole = 0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
+    for k in range(2):
+        assert np.isclose(area[parent == k].sum(), whole[k], rtol=1e-5)
+    n = np.cross(v[4] - v[3], v[5] - v[3])
+    assert np.abs((tri[parent == 1] - v[3]) @ n).max() < 1e-6
+    assert np.abs(tri[parent == 0][..., 2]).max() == 0.0
+    assert (parent == 1).sum() == 1 and (parent == 0).sum() == 4**4  # the long face: edges 11.7 -> 0.73
+
+
 def test_heterogeneous_grid_medium_matches_raymarch():
     scene = wv.load_scene("smoke-grid", ["camera.width=40", "camera.height=30"])
     base = wv.render(scene, technique="raymarch", steps=128, shadow_steps=64).image

@@ -24,6 +24,7 @@ minimum, so the result does not depend on the order in which triangles arrive.
 
 from __future__ import annotations
 
+import numpy as np
 import warp as wp
 
 from ..physics.constants import INF
@@ -229,3 +230,26 @@ def key_hit(key: wp.int64, points: wp.array(dtype=wp.vec3), indices: wp.array(dt
     c = points[indices[3 * f + 2]]
     n = wp.normalize(wp.cross(b - a, c - a))
     return True, wp.dot(a - o, n) / wp.dot(d, n), n, f  # the ray meets the triangle's plane there
+
+
+def split_long_edges(vertices: np.ndarray, faces: np.ndarray, max_edge: float):
+    """Triangles for rasterising: each face of (vertices, faces) is split into four at its edge
+    midpoints, repeatedly, until no edge is longer than ``max_edge``. A rasteriser thread takes
+    one triangle, so this bounds the work of one thread (a floor of two triangles would otherwise
+    leave one core, or one GPU thread, with half the image). The pieces are coplanar with their
+    face. Returns (points (3 F', 3), the face each piece came from (F',)), a triangle list
+    whose triangle k has points 3k, 3k + 1, 3k + 2."""
+    tri = np.asarray(vertices, np.float64)[np.asarray(faces).reshape(-1, 3)]
+    parent = np.arange(len(tri))
+    while len(tri):
+        edges = np.linalg.norm(tri - np.roll(tri, -1, axis=1), axis=2).max(axis=1)
+        long = edges > max_edge
+        if not long.any():
+            break
+        t = tri[long]
+        a, b, c = t[:, 0], t[:, 1], t[:, 2]
+        ab, bc, ca = 0.5 * (a + b), 0.5 * (b + c), 0.5 * (c + a)
+        pieces = np.stack([np.stack(p, axis=1) for p in ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))])
+        tri = np.concatenate([tri[~long], pieces.reshape(-1, 3, 3)])
+        parent = np.concatenate([parent[~long], np.tile(parent[long], 4)])
+    return tri.reshape(-1, 3).astype(np.float32), parent.astype(np.int32)

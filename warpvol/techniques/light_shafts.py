@@ -59,7 +59,7 @@ import warp as wp
 from .. import device as dev
 from ..geometry.camera import PinholeCamera, camera_ray, camera_view, pinhole
 from ..geometry.mesh import Surfaces, surface_hit
-from ..geometry.raster import NO_HIT, RasterView, key_hit, raster_triangle
+from ..geometry.raster import NO_HIT, RasterView, key_hit, raster_triangle, split_long_edges
 from ..geometry.shadowmap import (ShadowMap, map_faces_touched, map_view, shadow_map_for, shadow_visibility,
                                   texel_ray, texel_world_size, texels)
 from ..media.volume import Media, homogeneous_optical_depth, in_scatter_at, ray_box, scene_bounds, sigma_t_at
@@ -165,7 +165,8 @@ def shade_visible_surface(offset: int, cam: PinholeCamera, m: Media, s: Surfaces
                           maps: wp.array(dtype=ShadowMap), depth: wp.array(dtype=float), shadow_steps: int,
                           view_steps: int, background: wp.vec3, keys: wp.array(dtype=wp.int64),
                           points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int),
-                          t_hit: wp.array(dtype=float), radiance: wp.array(dtype=wp.vec3)):
+                          parent: wp.array(dtype=int), t_hit: wp.array(dtype=float),
+                          radiance: wp.array(dtype=wp.vec3)):
     """The paper's step 1: the visible surface per pixel (from the rasterised ``keys``, or a ray
     cast when there are none) and the radiance it reflects (direct light through the shadow maps
     and the media), then its part of equation 1, L0 exp(-tau s): attenuated along the view ray
@@ -179,22 +180,26 @@ def shade_visible_surface(offset: int, cam: PinholeCamera, m: Media, s: Surfaces
     f = int(-1)
     if keys.shape[0] > 1:
         hit, t, n, f = key_hit(keys[tid], points, indices, cam.origin, d)
+        if hit:
+            f = parent[f]  # the face the rasterised piece came from: its material
     else:
         hit, t, n, f = surface_hit(s, cam.origin, d, INF)
-    L0 = background
+    t_hit[tid] = t
+    if not hit:  # the background, attenuated through the media
+        _t_in, t_out = ray_box(cam.origin, d, m.all_min, m.all_max)
+        t = t_out
+    tau_v = marched_optical_depth(m, cam.origin, d, 0.0, t, view_steps)
+    L = wp.cw_mul(background, transmittance_rgb(tau_v))
     if hit:
-        L0 = wp.vec3(0.0)
+        L = wp.vec3(0.0)
         n = wp.where(wp.dot(n, d) < 0.0, n, -n)
         p = cam.origin + t * d + RAY_EPS * n
         for l in range(lights.shape[0]):
             wi, e, tau = light_arriving(m, lights, maps, depth, l, p, n, shadow_steps)
             cos_l = wp.dot(n, wi)
-            if cos_l > 0.0:
-                L0 += cos_l * wp.cw_mul(brdf_eval(s.material[f], n, -d, wi), wp.cw_mul(e, transmittance_rgb(tau)))
-    t_hit[tid] = t
-    _t_in, t_out = ray_box(cam.origin, d, m.all_min, m.all_max)
-    radiance[tid] = wp.cw_mul(L0, transmittance_rgb(marched_optical_depth(m, cam.origin, d, 0.0, wp.min(t_out, t),
-                                                                          view_steps)))
+            if cos_l > 0.0:  # to the surface and on to the camera: one exponential
+                L += cos_l * wp.cw_mul(brdf_eval(s.material[f], n, -d, wi), wp.cw_mul(e, transmittance_rgb(tau + tau_v)))
+    radiance[tid] = L
 
 
 @wp.kernel
@@ -339,6 +344,7 @@ class LightShafts(Technique):
         self.depth = wp.full(1, INF, dtype=float, device=device)
         self._no_keys = wp.full(1, NO_HIT, dtype=wp.int64, device=device)  # "ray cast instead"
         self._arrays = {}
+        self._raster_source = self._raster_mesh = None
         self.t_hit = self.radiance = None
         self.surface = self.partial = self.rows = self.image = None
 
@@ -376,15 +382,26 @@ class LightShafts(Technique):
         return out
 
     def _mesh_arrays(self):
-        mesh = self.uploads._surfaces.mesh
-        return mesh.points, mesh.indices
+        """(points, indices, face of each triangle) of the triangles the rasteriser takes: the
+        surfaces with no edge longer than 1/32 of the scene's diagonal (``split_long_edges``),
+        rebuilt when the surfaces are uploaded again."""
+        buffers = self.uploads._surfaces
+        if self._raster_source is not buffers:
+            lo, hi = scene_bounds(self.scene)
+            pts, parent = split_long_edges(buffers.mesh.points.numpy(), buffers.mesh.indices.numpy(),
+                                           float(np.linalg.norm(hi - lo)) / 32.0)
+            self._raster_mesh = (wp.array(pts, dtype=wp.vec3, device=self.device),
+                                 wp.array(np.arange(len(pts), dtype=np.int32), dtype=int, device=self.device),
+                                 wp.array(parent, dtype=int, device=self.device))
+            self._raster_source = buffers
+        return self._raster_mesh
 
     def _shadow_maps(self):
         structs = self._map_structs(occluders=True)
         total = sum(texels(sm.kind, sm.res) for sm in structs)
         if self.settings["raster"]:
             self.depth = wp.full(max(total, 1), INF, dtype=float, device=self.device)
-            points, indices = self._mesh_arrays()
+            points, indices, _ = self._mesh_arrays()
             for sm in structs:
                 faces = texels(sm.kind, sm.res) // (sm.res * sm.res)
                 dev.launch_private(raster_shadow_map, indices.shape[0] // 3,
@@ -419,7 +436,7 @@ class LightShafts(Technique):
         self.radiance = self._scratch("radiance", npix, wp.vec3)
         view = pinhole(cam)
         keys = self._no_keys
-        points, indices = self._mesh_arrays()
+        points, indices, parent = self._mesh_arrays()
         if self.settings["raster"]:
             keys = self._scratch("keys", npix, wp.int64, fill=NO_HIT)
             lo, hi = scene_bounds(scene)
@@ -430,8 +447,8 @@ class LightShafts(Technique):
                                self.device)
         dev.launch(shade_visible_surface, npix, [view, u.media.struct, u.surfaces, u.lights, self.maps, self.depth,
                                                  self.settings["shadow_steps"], self.settings["steps"],
-                                                 wp.vec3(*scene.background), keys, points, indices, self.t_hit,
-                                                 self.radiance], self.device)
+                                                 wp.vec3(*scene.background), keys, points, indices, parent,
+                                                 self.t_hit, self.radiance], self.device)
 
     def _march(self):
         scene, u, cfg = self.scene, self.uploads, self.settings
