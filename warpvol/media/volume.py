@@ -145,15 +145,31 @@ def choose_medium(m: Media, x: wp.vec3, c: int, u: float) -> int:
 
 
 @wp.func
+def inside_convex(m: Media, i: int, x: wp.vec3) -> bool:
+    """Whether x lies in homogeneous medium i (a box or a sphere)."""
+    if m.kind[i] == SPHERE:
+        r = x - m.center[i]
+        return wp.dot(r, r) <= m.radius[i] * m.radius[i]
+    lo = m.bmin[i]
+    hi = m.bmax[i]
+    return x[0] >= lo[0] and x[1] >= lo[1] and x[2] >= lo[2] and x[0] <= hi[0] and x[1] <= hi[1] and x[2] <= hi[2]
+
+
+@wp.func
 def homogeneous_optical_depth(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: float) -> wp.vec3:
     """Exact optical depth of the homogeneous media over [t0, t1] along o + t d (d unit)."""
     tau = wp.vec3(0.0)
+    p0 = o + t0 * d
+    p1 = o + t1 * d
     for i in range(m.count):
         kind = m.kind[i]
         if kind == BOX or kind == SPHERE:
             a = float(0.0)
             b = float(0.0)
-            if kind == BOX:
+            if inside_convex(m, i, p0) and t1 < INF and inside_convex(m, i, p1):
+                a = t0  # both ends inside a convex medium: all of it is (no slab test)
+                b = t1
+            elif kind == BOX:
                 a, b = ray_box(o, d, m.bmin[i], m.bmax[i])
             else:
                 a, b = ray_sphere(o, d, m.center[i], m.radius[i])
