@@ -9,6 +9,7 @@ pool (a launch releases the GIL); each kernel takes the range start as its first
 from __future__ import annotations
 
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
 
 import warp as wp
@@ -55,33 +56,49 @@ def threads() -> int:
 MIN_SPLIT = 32768  # threads below which a CPU launch is not split (handing out chunks costs ~1 ms)
 
 
-def launch(kernel, dim: int, inputs: list, device: str, split: bool = True, min_split: int | None = None):
-    """Launch ``kernel`` over ``dim`` threads; its first argument is the index offset.
-    ``min_split`` overrides ``MIN_SPLIT`` for kernels whose threads each do much work."""
+def _pool_of(n: int) -> ThreadPoolExecutor:
+    """n - 1 worker threads: with the calling thread, n take chunks side by side."""
     global _pool
-    n = threads() if split and str(device) == "cpu" else 1
-    if n <= 1 or dim < (MIN_SPLIT if min_split is None else min_split):  # small launches cost less than handing them to threads
-        wp.launch(kernel, dim=dim, inputs=[0, *inputs], device=device)
-        return
-    if _pool is None or _pool._max_workers != n:
-        _pool = ThreadPoolExecutor(max_workers=n)
-    # interleave ranges into 4 n chunks so uneven pixels (a bright corner) balance out
-    chunks = 4 * n
-    bounds = [dim * k // chunks for k in range(chunks + 1)]
-    # the first chunk runs on this thread, so the module is compiled or loaded exactly once
-    wp.launch(kernel, dim=bounds[1], inputs=[0, *inputs], device=device)
-    futures = [
-        _pool.submit(wp.launch, kernel, dim=bounds[k + 1] - bounds[k], inputs=[bounds[k], *inputs], device=device)
-        for k in range(1, chunks)
-        if bounds[k + 1] > bounds[k]
-    ]
+    if _pool is None or _pool._max_workers != n - 1:
+        _pool = ThreadPoolExecutor(max_workers=n - 1)
+    return _pool
+
+
+def _run_chunks(kernel, device: str, n: int, jobs: list) -> None:
+    """Run ``jobs`` (callables) on n threads, this one included, each taking the next job in
+    turn (a chunk of pixels that costs more than the others does not hold the rest up)."""
+    wp.load_module(kernel.module, device=device)  # once, before the threads launch from it
+    queue = iter(jobs)
+    lock = threading.Lock()
+
+    def work():
+        while True:
+            with lock:
+                job = next(queue, None)
+            if job is None:
+                return
+            job()
+
+    futures = [_pool_of(n).submit(work) for _ in range(n - 1)]
+    work()
     for f in futures:
         f.result()
 
 
-def synchronize(device: str):
-    wp.synchronize_device(device)
+def launch(kernel, dim: int, inputs: list, device: str, split: bool = True, min_split: int | None = None):
+    """Launch ``kernel`` over ``dim`` threads; its first argument is the index offset.
+    ``min_split`` overrides ``MIN_SPLIT`` for kernels whose threads each do much work."""
+    n = threads() if split and str(device) == "cpu" else 1
+    if n <= 1 or dim < (MIN_SPLIT if min_split is None else min_split):  # small launches cost less than handing them to threads
+        wp.launch(kernel, dim=dim, inputs=[0, *inputs], device=device)
+        return
+    chunks = 4 * n  # several per thread, so uneven pixels (a bright corner) balance out
+    bounds = [dim * k // chunks for k in range(chunks + 1)]
 
+    def chunk(k):
+        return lambda: wp.launch(kernel, dim=bounds[k + 1] - bounds[k], inputs=[bounds[k], *inputs], device=device)
+
+    _run_chunks(kernel, device, n, [chunk(k) for k in range(chunks) if bounds[k + 1] > bounds[k]])
 
 
 def launch_private(kernel, dim: int, inputs: list, out, merge, device: str):
@@ -90,26 +107,22 @@ def launch_private(kernel, dim: int, inputs: list, out, merge, device: str):
     Warp's CPU atomics are not atomic across threads, so on the CPU each core takes its share of
     the threads (interleaved chunks) into a private copy of ``out``, and the copies are folded
     into ``out`` by the elementwise ``merge(offset, copy, out)``. CUDA runs one launch."""
-    global _pool
     n = threads() if str(device) == "cpu" else 1
     if n <= 1 or dim < MIN_SPLIT // 8:
         wp.launch(kernel, dim=dim, inputs=[0, *inputs, out], device=device)
         return
-    if _pool is None or _pool._max_workers != n:
-        _pool = ThreadPoolExecutor(max_workers=n)
     copies = [out] + [wp.clone(out) for _ in range(n - 1)]
     chunks = 4 * n
     bounds = [dim * k // chunks for k in range(chunks + 1)]
 
-    def work(w: int):
-        for k in range(w, chunks, n):
-            if bounds[k + 1] > bounds[k]:
-                wp.launch(kernel, dim=bounds[k + 1] - bounds[k], inputs=[bounds[k], *inputs, copies[w]], device=device)
+    def share(w):
+        def run():
+            for k in range(w, chunks, n):
+                if bounds[k + 1] > bounds[k]:
+                    wp.launch(kernel, dim=bounds[k + 1] - bounds[k], inputs=[bounds[k], *inputs, copies[w]],
+                              device=device)
+        return run
 
-    wp.load_module(kernel.module, device=device)  # once, before the threads launch from it
-    futures = [_pool.submit(work, w) for w in range(1, n)]
-    work(0)
-    for f in futures:
-        f.result()
+    _run_chunks(kernel, device, n, [share(w) for w in range(n)])
     for c in copies[1:]:
         launch(merge, out.shape[0], [c, out], device)
