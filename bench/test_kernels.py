@@ -54,3 +54,39 @@ def test_illumination_network_build(benchmark):
         r.render()
 
     benchmark.pedantic(build, rounds=5, iterations=1)
+
+
+@pytest.mark.parametrize("stage,raster", [("shadow_maps", 1), ("shadow_maps", 0), ("surface", 1), ("surface", 0)])
+def test_light_shafts_passes(benchmark, stage, raster):
+    """papers/001's shadow-map and surface passes on colonnade-shafts (65 660 triangles, 800x600,
+    256^2 cube map): rasterised (raster = 1) against BVH ray casts (raster = 0)."""
+    import warp as wp
+
+    from bench.sweeps import _shafts_scene
+
+    r = wv.Renderer(_shafts_scene(False), technique="light_shafts", raster=raster)
+    r.render()
+    run = getattr(r.technique, "_" + stage)
+
+    def once():
+        run()
+        wp.synchronize_device(r.technique.device)
+
+    benchmark.pedantic(once, rounds=5, iterations=1, warmup_rounds=1)
+
+
+@pytest.mark.parametrize("block", [1, 4])
+def test_light_shafts_march(benchmark, block):
+    """The march at N = 64 with and without M x M interleaving (the issue's 0.7 M^2 target)."""
+    import warp as wp
+
+    from bench.sweeps import _shafts_scene
+
+    r = wv.Renderer(_shafts_scene(False), technique="light_shafts", steps=64, block=block)
+    r.render()
+
+    def once():
+        r.technique._march()
+        wp.synchronize_device(r.technique.device)
+
+    benchmark.pedantic(once, rounds=3 if block == 1 else 10, iterations=1, warmup_rounds=1)

@@ -169,7 +169,8 @@ def triangle_edges(v: RasterView, a: wp.vec3, b: wp.vec3, c: wp.vec3):
 
 
 NO_HIT = wp.constant(wp.int64(0x7FFFFFFFFFFFFFFF))  # key of a pixel no triangle covers
-KEY_LIMIT = wp.constant(2.0e9)  # quantised distances are clamped below 2^31
+KEY_RANGE = 2.0e9  # quantised distances run over [0, KEY_RANGE] (below 2^31): t_scale = KEY_RANGE / farthest t
+KEY_LIMIT = wp.constant(KEY_RANGE)
 
 
 @wp.func

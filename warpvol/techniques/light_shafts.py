@@ -59,7 +59,7 @@ import warp as wp
 from .. import device as dev
 from ..geometry.camera import PinholeCamera, camera_ray, camera_view, pinhole
 from ..geometry.mesh import Surfaces, surface_hit
-from ..geometry.raster import NO_HIT, RasterView, key_hit, raster_triangle, split_long_edges
+from ..geometry.raster import KEY_RANGE, NO_HIT, RasterView, key_hit, raster_triangle, split_long_edges
 from ..geometry.shadowmap import (ShadowMap, map_faces_touched, map_view, shadow_map_for, shadow_visibility,
                                   texel_ray, texel_world_size, texels)
 from ..media.volume import Media, homogeneous_optical_depth, in_scatter_at, ray_box, scene_bounds, sigma_t_at
@@ -443,7 +443,7 @@ class LightShafts(Technique):
             corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
             t_far = float(np.max(np.linalg.norm(corners - np.asarray(cam.origin, float), axis=1)))
             dev.launch_private(raster_visible, indices.shape[0] // 3,
-                               [points, indices, camera_view(view), 2.0**31 / t_far, self.depth], keys, min_into_int64,
+                               [points, indices, camera_view(view), KEY_RANGE / t_far, self.depth], keys, min_into_int64,
                                self.device)
         dev.launch(shade_visible_surface, npix, [view, u.media.struct, u.surfaces, u.lights, self.maps, self.depth,
                                                  self.settings["shadow_steps"], self.settings["steps"],
