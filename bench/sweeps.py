@@ -181,7 +181,7 @@ def _shafts_accuracy(params: dict, device: str, quick: bool) -> dict:
 
 
 def _shafts_edges_grid(quick: bool) -> list[dict]:
-    return [{"block": m} for m in ((2, 4) if quick else (2, 3, 4, 8))]
+    return [{"block": m, "edges": e} for m in ((2, 4) if quick else (2, 3, 4, 8)) for e in (0, 1)]
 
 
 def _shafts_edges(params: dict, device: str, quick: bool) -> dict:
@@ -208,7 +208,8 @@ def _shafts_edges(params: dict, device: str, quick: bool) -> dict:
         near[:-1] |= near[1:]
         near[:, 1:] |= near[:, :-1]
         near[:, :-1] |= near[:, 1:]
-    r = wv.Renderer(scene, technique="light_shafts", device=device, steps=64, block=m, jitter=0)
+    r = wv.Renderer(scene, technique="light_shafts", device=device, steps=64, block=m, jitter=0,
+                    edges=params.get("edges", 0))
     row = time_frames(r, repeats=1 if quick else 3, invalidate=("camera", "lights"))
     err = np.abs(row["frame"].image - full).mean(axis=2) / full.mean()
     row.update(edge_pixels=float(near.mean()), rel_err_edges=float(err[near].mean()),
@@ -617,7 +618,8 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
           "colonnade-shafts 800x600, camera and light moving",
           "light_shafts", "paper", _shafts_sweep_grid, _shafts_frame, issue=4),
     Sweep("light-shafts-edges", "light_shafts: the error interleaving leaves at depth discontinuities (mean |interleaved"
-          " - per-pixel N = 64| / mean, near depth jumps and elsewhere), colonnade-shafts 800x600",
+          " - per-pixel N = 64| / mean, near depth jumps and elsewhere), with the paper's block sum (edges = 0) and the "
+          "depth-aware one (edges = 1), colonnade-shafts 800x600",
           "light_shafts", "edges", _shafts_edges_grid, _shafts_edges, issue=4),
     Sweep("light-shafts-accuracy", "light_shafts: relative RMSE against the single-scattering reference (and the "
           "1024-step raymarch with exact shadow rays) vs ms per frame, over N, M and shadow-map resolution, "

@@ -170,6 +170,44 @@ def test_split_long_edges_keeps_each_face_and_bounds_the_pieces():
     assert (parent == 1).sum() == 1 and (parent == 0).sum() == 4**4  # the long face: edges 11.7 -> 0.73
 
 
+def window_all_similar(depth, m, tol):
+    """Per pixel: every pixel of its M x M block window (as the block sums place it) lies within
+    ``tol`` relative depth of it, both missing a surface counting as similar."""
+    h, w = depth.shape
+    ys, xs = np.mgrid[0:h, 0:w]
+    x0 = np.clip(xs - m // 2, 0, max(w - m, 0))
+    y0 = np.clip(ys - m // 2, 0, max(h - m, 0))
+    ok = np.ones(depth.shape, bool)
+    inf = depth >= 1e29
+    for j in range(m):
+        for i in range(m):
+            q = depth[y0 + j, x0 + i]
+            qinf = q >= 1e29
+            close = np.abs(q - depth) <= tol * np.minimum(q, depth)
+            ok &= np.where(inf | qinf, inf & qinf, close)
+    return ok
+
+
+def test_depth_aware_block_sum_removes_the_halo(device):
+    """At a depth jump the paper's block sum borrows samples of rays of another length (a halo M/2
+    pixels wide). Keeping to neighbours within 10 % depth and rescaling for the classes left out
+    halves that error where a window straddles a jump, against the same N taken per pixel
+    (measured 0.21 against 0.43 of the image mean; what is left is the noise of fewer classes).
+    The test asks for a cut of at least 40 %. Where every neighbour is kept it is the plain sum,
+    to float rounding (measured 2e-7)."""
+    scene = pillar_scene(width=96, height=72)
+    full = shafts(scene, device, steps=64, block=1, jitter=0).image
+    r = wv.Renderer(scene, technique="light_shafts", device=device, steps=64, block=4, jitter=0)
+    plain = r.render().image
+    depth = r.arrays(slice_res=2)["depth"]
+    aware = shafts(scene, device, steps=64, block=4, jitter=0, edges=1).image
+    smooth = window_all_similar(depth, 4, 0.1)
+    assert 0.02 < (~smooth).mean() < 0.5  # the pillar's and floor's edges
+    err = lambda img: np.abs(img - full)[~smooth].mean() / full.mean()  # noqa: E731
+    assert err(aware) < 0.6 * err(plain), (err(aware), err(plain))
+    assert np.abs(aware - plain)[smooth].max() <= 1e-5 * plain.max()
+
+
 def test_heterogeneous_grid_medium_matches_raymarch():
     scene = wv.load_scene("smoke-grid", ["camera.width=40", "camera.height=30"])
     base = wv.render(scene, technique="raymarch", steps=128, shadow_steps=64).image

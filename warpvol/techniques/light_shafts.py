@@ -23,7 +23,8 @@ with v(x) the shadow-map visibility of x from the light. Passes (stages):
 * ``block_rows``, ``block_cols``: the separable M x M box sum that gathers the N samples
   back (horizontal, then vertical; the window is the M x M pixels around a pixel, shifted
   inside the image at the borders, and holds every residue class k exactly once), then
-  adds the surface term. Skipped when M = 1.
+  adds the surface term. Skipped when M = 1; ``block_edges`` (depth-aware) replaces both
+  when ``edges`` = 1.
 
 Where this departs from the paper, and why:
 
@@ -48,7 +49,10 @@ Where this departs from the paper, and why:
 At depth discontinuities the block sum adds samples of neighbouring rays of other
 lengths: a pixel on a near column next to the far wall borrows the wall pixels' longer
 samples, and vice versa, which leaves a halo up to M/2 pixels wide. Its error is measured
-in results/light-shafts (edge pixels against the others).
+in results/light-shafts-edges (edge pixels against the others). Beyond the paper, ``edges`` = 1
+replaces the separable sum by a depth-aware one (``block_edges``): a pixel sums only the
+neighbours whose surface lies within ``edge_tolerance`` of its own depth and scales the sum
+by M^2 / (neighbours kept), which cuts that error 5-8 fold there at M^2 reads per pixel.
 """
 
 from __future__ import annotations
@@ -83,6 +87,9 @@ SETTINGS = {
     "seed": Setting(0, 0, 2**31 - 1, "random seed of the jitter"),
     "spacing": Setting(1, 0, 1, "0: the paper's dl = s / N per ray; 1: dl = (media segment) / N, shared by neighbours"),
     "raster": Setting(1, 0, 1, "1: shadow maps and the visible surface by rasterising triangles; 0: by BVH ray casts"),
+    "edges": Setting(0, 0, 1, "1: the block sum keeps to neighbours at a similar depth and rescales for the samples it "
+                     "leaves out (no halo at depth jumps); 0: the paper's plain separable sum"),
+    "edge_tolerance": Setting(0.1, 0.0, 10.0, "edges = 1: relative depth difference beyond which a neighbour is left out"),
 }
 
 
@@ -302,6 +309,36 @@ def block_sum_cols(offset: int, rows: wp.array(dtype=wp.vec3), surface: wp.array
 
 
 @wp.kernel
+def block_sum_depth_aware(offset: int, values: wp.array(dtype=wp.vec3), surface: wp.array(dtype=wp.vec3),
+                          t_hit: wp.array(dtype=float), width: int, height: int, block: int, tolerance: float,
+                          image: wp.array(dtype=wp.vec3)):
+    """The M x M block sum over the neighbours whose visible surface lies within ``tolerance``
+    (relative) of this pixel's, scaled by M^2 / (neighbours kept): the samples of the residue
+    classes left out are replaced by the mean of those kept. Where depth is smooth every
+    neighbour is kept and this is the plain sum; at a jump, a pixel no longer borrows samples
+    of rays of another length (the halo of ``block_sum_rows``/``cols``). Not separable: M^2 reads."""
+    tid = wp.tid() + offset
+    px = tid % width
+    py = tid / width
+    x0 = wp.clamp(px - block / 2, 0, wp.max(width - block, 0))
+    y0 = wp.clamp(py - block / 2, 0, wp.max(height - block, 0))
+    tp = t_hit[tid]
+    acc = wp.vec3(0.0)
+    kept = int(0)
+    for j in range(block):
+        row = (y0 + j) * width + x0
+        for i in range(block):
+            tq = t_hit[row + i]
+            same = tp >= INF and tq >= INF
+            if tp < INF and tq < INF:
+                same = wp.abs(tq - tp) <= tolerance * wp.min(tp, tq)
+            if same:
+                acc += values[row + i]
+                kept += 1
+    image[tid] = surface[tid] + acc * (float(block * block) / float(wp.max(kept, 1)))
+
+
+@wp.kernel
 def add_images(offset: int, a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), out: wp.array(dtype=wp.vec3)):
     tid = wp.tid() + offset
     out[tid] = a[tid] + b[tid]
@@ -357,6 +394,7 @@ class LightShafts(Technique):
         scene = self.scene
         occluders = bool(scene.surfaces)
         interleaved = self.effective_block() > 1 and self.settings["scattering"] == 1 and bool(scene.media)
+        depth_aware = self.settings["edges"] == 1 and occluders  # depth comes from the surface pass
         return self.uploads.stages() + [
             Stage("shadow_maps", self._shadow_maps, reads=("lights",),
                   settings=("shadow_map_res", "depth_bias", "raster"),
@@ -367,8 +405,12 @@ class LightShafts(Technique):
             Stage("march", self._march, reads=("camera", "background"),
                   settings=("steps", "block", "jitter", "scattering", "shadow_steps", "seed", "spacing"),
                   after=("medium", "lights", "shadow_maps", "surface")),
-            Stage("block_rows", self._block_rows, settings=("block",), after=("march",), needed=interleaved),
-            Stage("block_cols", self._block_cols, settings=("block",), after=("block_rows",), needed=interleaved),
+            Stage("block_rows", self._block_rows, settings=("block",), after=("march",),
+                  needed=interleaved and not depth_aware),
+            Stage("block_cols", self._block_cols, settings=("block",), after=("block_rows",),
+                  needed=interleaved and not depth_aware),
+            Stage("block_edges", self._block_edges, settings=("block", "edge_tolerance"), after=("march",),
+                  needed=interleaved and depth_aware),
         ]
 
     def _map_structs(self, occluders: bool) -> list[ShadowMap]:
@@ -484,6 +526,13 @@ class LightShafts(Technique):
         self.image = wp.empty(cam.width * cam.height, dtype=wp.vec3, device=self.device)
         dev.launch(block_sum_cols, cam.width * cam.height, [self.rows, self.surface, cam.width, cam.height,
                                                             self.effective_block(), self.image], self.device)
+
+    def _block_edges(self):
+        cam = self.scene.camera
+        self.image = wp.empty(cam.width * cam.height, dtype=wp.vec3, device=self.device)
+        dev.launch(block_sum_depth_aware, cam.width * cam.height,
+                   [self.partial, self.surface, self.t_hit, cam.width, cam.height, self.effective_block(),
+                    self.settings["edge_tolerance"], self.image], self.device)
 
     def output(self):
         return self.image
