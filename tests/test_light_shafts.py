@@ -149,6 +149,26 @@ def test_rasterising_finds_what_ray_casting_finds(scene, device):
     assert np.abs(img - img0).mean() < 1e-4 * img0.mean()
 
 
+@pytest.mark.parametrize("scene", ["pillar-point", "pillar-sun", "colonnade"])
+def test_tiled_rasterising_equals_one_thread_per_triangle(scene, device):
+    """Splitting each triangle's box into 16 x 16 pieces (the GPU's balanced schedule: pieces
+    counted, scanned, found back by binary search) writes the very same texels and pixels:
+    each pixel's values do not depend on which piece computes them."""
+    if scene == "colonnade":
+        d = wv.load_scene("colonnade-shafts", ["camera.width=160", "camera.height=120"])
+    else:
+        d = pillar_scene({"pillar-point": None, "pillar-sun": SUN}[scene], width=64, height=48)
+    out = []
+    for tiles in (0, 1):
+        r = wv.Renderer(d, technique="light_shafts", device=device, raster_tiles=tiles, shadow_map_res=96, steps=32,
+                        block=2)
+        img = r.render().image
+        a = r.arrays(slice_res=2)
+        out.append((img, a["depth"], np.concatenate(a["shadow_distance"])))
+    for x, y in zip(*out):
+        assert np.array_equal(x, y)
+
+
 def test_split_long_edges_keeps_each_face_and_bounds_the_pieces():
     """Splitting for the rasteriser: every edge ends up no longer than the bound, each face's
     pieces tile it (their areas sum to its area, and every piece lies in its plane), and a

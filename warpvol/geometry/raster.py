@@ -32,6 +32,7 @@ from ..physics.constants import INF
 NEAR = wp.constant(1.0e-6)  # a perspective view clips triangles to depth > NEAR (scene units)
 BOX_SLACK = wp.constant(1.0e-3)  # pixels: a triangle's box is widened by this much for rounding
 EDGE_SLACK = wp.constant(1.0e-6)  # barycentric slack: a pixel centre on a shared edge is covered by both
+TILE = wp.constant(16)  # pixels per side of the pieces a large triangle is split into (tiled rasterising)
 
 
 @wp.struct
@@ -174,14 +175,14 @@ KEY_LIMIT = wp.constant(KEY_RANGE)
 
 
 @wp.func
-def raster_triangle(v: RasterView, a: wp.vec3, b: wp.vec3, c: wp.vec3, face: int, with_keys: int, t_scale: float,
-                    depth: wp.array(dtype=float), keys: wp.array(dtype=wp.int64)):
-    """Rasterise triangle ``face`` (abc) into view v: per covered pixel, the nearest distance
-    into ``depth``, or (with_keys = 1) the nearest (distance x t_scale, face) as one int64 key
-    into ``keys``."""
-    i0, j0, i1, j1 = triangle_pixels(v, a, b, c)
-    if i0 > i1 or j0 > j1:
-        return
+def raster_rect(v: RasterView, a: wp.vec3, b: wp.vec3, c: wp.vec3, face: int, i0: int, x0: int, x1: int, y0: int,
+                y1: int, with_keys: int, t_scale: float, depth: wp.array(dtype=float),
+                keys: wp.array(dtype=wp.int64)):
+    """Rasterise the pixels [x0, x1] x [y0, y1] of triangle ``face`` (abc) into view v, a part of its
+    box whose first column is i0: per covered pixel, the nearest distance into ``depth``, or
+    (with_keys = 1) the nearest (distance x t_scale, face) as one int64 key into ``keys``. Image
+    coordinates step from column i0 whatever the part, so every split of the box gives the same
+    pixels the same values."""
     e0, e1, e2, facing = triangle_edges(v, a, b, c)
     if not facing:
         return
@@ -193,12 +194,12 @@ def raster_triangle(v: RasterView, a: wp.vec3, b: wp.vec3, c: wp.vec3, face: int
     rr = wp.dot(v.right, v.right)
     uu = wp.dot(v.up, v.up)
     dsx = 2.0 / float(v.width)
-    for j in range(j0, j1 + 1):
+    for j in range(y0, y1 + 1):
         sx0, sy = image_coords(v, i0, j)
         r0 = e0[0] + sy * e0[2]
         r1 = e1[0] + sy * e1[2]
         r2 = e2[0] + sy * e2[2]
-        for i in range(i0, i1 + 1):
+        for i in range(x0, x1 + 1):
             # the edge functions at the pixel centre: all >= 0 where its ray passes through abc
             sx = sx0 + float(i - i0) * dsx
             w0 = r0 + sx * e0[1]
@@ -218,6 +219,51 @@ def raster_triangle(v: RasterView, a: wp.vec3, b: wp.vec3, c: wp.vec3, face: int
                         wp.atomic_min(keys, k, (q << wp.int64(32)) | wp.int64(face))
                     else:
                         wp.atomic_min(depth, k, t)
+
+
+@wp.func
+def raster_triangle(v: RasterView, a: wp.vec3, b: wp.vec3, c: wp.vec3, face: int, with_keys: int, t_scale: float,
+                    depth: wp.array(dtype=float), keys: wp.array(dtype=wp.int64)):
+    """Rasterise all of triangle ``face`` (abc) into view v (see ``raster_rect``)."""
+    i0, j0, i1, j1 = triangle_pixels(v, a, b, c)
+    if i0 <= i1 and j0 <= j1:
+        raster_rect(v, a, b, c, face, i0, i0, i1, j0, j1, with_keys, t_scale, depth, keys)
+
+
+@wp.func
+def triangle_tiles(v: RasterView, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> int:
+    """How many TILE x TILE pieces triangle abc's box in view v splits into (0: off the view)."""
+    i0, j0, i1, j1 = triangle_pixels(v, a, b, c)
+    if i0 > i1 or j0 > j1:
+        return 0
+    return ((i1 - i0) / TILE + 1) * ((j1 - j0) / TILE + 1)
+
+
+@wp.func
+def raster_triangle_tile(v: RasterView, a: wp.vec3, b: wp.vec3, c: wp.vec3, face: int, tile: int, with_keys: int,
+                         t_scale: float, depth: wp.array(dtype=float), keys: wp.array(dtype=wp.int64)):
+    """Rasterise piece ``tile`` (0 .. triangle_tiles - 1, row by row) of triangle abc's box."""
+    i0, j0, i1, j1 = triangle_pixels(v, a, b, c)
+    nx = (i1 - i0) / TILE + 1
+    x0 = i0 + (tile % nx) * TILE
+    y0 = j0 + (tile / nx) * TILE
+    raster_rect(v, a, b, c, face, i0, x0, wp.min(x0 + TILE - 1, i1), y0, wp.min(y0 + TILE - 1, j1), with_keys,
+                t_scale, depth, keys)
+
+
+@wp.func
+def owner(starts: wp.array(dtype=int), w: int) -> int:
+    """The k with starts[k] <= w < starts[k + 1]: which item work unit w belongs to, when
+    ``starts`` is the exclusive scan of the items' unit counts (binary search)."""
+    lo = int(0)
+    hi = int(starts.shape[0] - 1)
+    while lo < hi:
+        mid = (lo + hi + 1) / 2
+        if starts[mid] <= w:
+            lo = mid
+        else:
+            hi = mid - 1
+    return lo
 
 
 @wp.func

@@ -63,7 +63,8 @@ import warp as wp
 from .. import device as dev
 from ..geometry.camera import PinholeCamera, camera_ray, camera_view, pinhole
 from ..geometry.mesh import Surfaces, surface_hit
-from ..geometry.raster import KEY_RANGE, NO_HIT, RasterView, key_hit, raster_triangle, split_long_edges
+from ..geometry.raster import (KEY_RANGE, NO_HIT, RasterView, key_hit, owner, raster_triangle,
+                              raster_triangle_tile, split_long_edges, triangle_tiles)
 from ..geometry.shadowmap import (ShadowMap, map_faces_touched, map_view, shadow_map_for, shadow_visibility,
                                   texel_ray, texel_world_size, texels)
 from ..media.volume import Media, homogeneous_optical_depth, in_scatter_at, ray_box, scene_bounds, sigma_t_at
@@ -87,6 +88,8 @@ SETTINGS = {
     "seed": Setting(0, 0, 2**31 - 1, "random seed of the jitter"),
     "spacing": Setting(1, 0, 1, "0: the paper's dl = s / N per ray; 1: dl = (media segment) / N, shared by neighbours"),
     "raster": Setting(1, 0, 1, "1: shadow maps and the visible surface by rasterising triangles; 0: by BVH ray casts"),
+    "raster_tiles": Setting(-1, -1, 1, "1: one rasteriser thread per 16 x 16-pixel piece of a triangle (balanced "
+                            "for GPUs); 0: one per triangle; -1: pieces on CUDA, triangles on the CPU"),
     "edges": Setting(0, 0, 1, "1: the block sum keeps to neighbours at a similar depth and rescales for the samples it "
                      "leaves out (no halo at depth jumps); 0: the paper's plain separable sum"),
     "edge_tolerance": Setting(0.1, 0.0, 10.0, "edges = 1: relative depth difference beyond which a neighbour is left out"),
@@ -134,6 +137,60 @@ def raster_visible(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.arr
     f = wp.tid() + offset
     raster_triangle(view, points[indices[3 * f]], points[indices[3 * f + 1]], points[indices[3 * f + 2]], f, 1,
                     t_scale, no_depth, keys)
+
+
+@wp.kernel
+def count_map_tiles(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int), sm: ShadowMap,
+                    faces: int, counts: wp.array(dtype=int)):
+    """Per triangle: its TILE x TILE pieces over the faces of the map it reaches."""
+    f = wp.tid() + offset
+    a = points[indices[3 * f]]
+    b = points[indices[3 * f + 1]]
+    c = points[indices[3 * f + 2]]
+    touched = map_faces_touched(sm, a, b, c)
+    n = int(0)
+    for face in range(faces):
+        if (touched >> face) & 1 == 1:
+            n += triangle_tiles(map_view(sm, face), a, b, c)
+    counts[f] = n
+
+
+@wp.kernel
+def raster_map_tiles(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int), sm: ShadowMap,
+                     faces: int, starts: wp.array(dtype=int), no_keys: wp.array(dtype=wp.int64),
+                     depth: wp.array(dtype=float)):
+    """One thread per piece (``starts``: exclusive scan of ``count_map_tiles``): the piece's texels."""
+    w = wp.tid() + offset
+    f = owner(starts, w)
+    a = points[indices[3 * f]]
+    b = points[indices[3 * f + 1]]
+    c = points[indices[3 * f + 2]]
+    touched = map_faces_touched(sm, a, b, c)
+    local = w - starts[f]
+    for face in range(faces):
+        if (touched >> face) & 1 == 1:
+            v = map_view(sm, face)
+            n = triangle_tiles(v, a, b, c)
+            if local >= 0 and local < n:
+                raster_triangle_tile(v, a, b, c, f, local, 0, 0.0, depth, no_keys)
+            local -= n
+
+
+@wp.kernel
+def count_visible_tiles(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int),
+                        view: RasterView, counts: wp.array(dtype=int)):
+    f = wp.tid() + offset
+    counts[f] = triangle_tiles(view, points[indices[3 * f]], points[indices[3 * f + 1]], points[indices[3 * f + 2]])
+
+
+@wp.kernel
+def raster_visible_tiles(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int),
+                         view: RasterView, starts: wp.array(dtype=int), t_scale: float,
+                         no_depth: wp.array(dtype=float), keys: wp.array(dtype=wp.int64)):
+    w = wp.tid() + offset
+    f = owner(starts, w)
+    raster_triangle_tile(view, points[indices[3 * f]], points[indices[3 * f + 1]], points[indices[3 * f + 2]], f,
+                         w - starts[f], 1, t_scale, no_depth, keys)
 
 
 @wp.kernel
@@ -397,10 +454,10 @@ class LightShafts(Technique):
         depth_aware = self.settings["edges"] == 1 and occluders  # depth comes from the surface pass
         return self.uploads.stages() + [
             Stage("shadow_maps", self._shadow_maps, reads=("lights",),
-                  settings=("shadow_map_res", "depth_bias", "raster"),
+                  settings=("shadow_map_res", "depth_bias", "raster", "raster_tiles"),
                   after=("surfaces", "lights"), needed=occluders and bool(scene.lights)),
             Stage("surface", self._surface, reads=("camera", "background"),
-                  settings=("shadow_steps", "raster", "steps"),
+                  settings=("shadow_steps", "raster", "raster_tiles", "steps"),
                   after=("medium", "surfaces", "lights", "shadow_maps"), needed=occluders),
             Stage("march", self._march, reads=("camera", "background"),
                   settings=("steps", "block", "jitter", "scattering", "shadow_steps", "seed", "spacing"),
@@ -438,6 +495,21 @@ class LightShafts(Technique):
             self._raster_source = buffers
         return self._raster_mesh
 
+    def _tiled(self) -> bool:
+        mode = self.settings["raster_tiles"]
+        return mode == 1 or (mode == -1 and str(self.device).startswith("cuda"))
+
+    def _tile_starts(self, count_kernel, inputs: list):
+        """Pieces per triangle, their exclusive scan (where each triangle's pieces start) and
+        the total, the one number read back to size the launch."""
+        ntri = inputs[1].shape[0] // 3
+        counts = self._scratch("tile_counts", ntri, int)
+        starts = self._scratch("tile_starts", ntri, int)
+        dev.launch(count_kernel, ntri, [*inputs, counts], self.device)
+        wp.utils.array_scan(counts, starts, inclusive=False)
+        last = np.concatenate([starts[ntri - 1:].numpy(), counts[ntri - 1:].numpy()])
+        return starts, int(last.sum())
+
     def _shadow_maps(self):
         structs = self._map_structs(occluders=True)
         total = sum(texels(sm.kind, sm.res) for sm in structs)
@@ -446,8 +518,14 @@ class LightShafts(Technique):
             points, indices, _ = self._mesh_arrays()
             for sm in structs:
                 faces = texels(sm.kind, sm.res) // (sm.res * sm.res)
-                dev.launch_private(raster_shadow_map, indices.shape[0] // 3,
-                                   [points, indices, sm, faces, self._no_keys], self.depth, min_into_float, self.device)
+                if self._tiled():
+                    starts, total = self._tile_starts(count_map_tiles, [points, indices, sm, faces])
+                    dev.launch_private(raster_map_tiles, total, [points, indices, sm, faces, starts, self._no_keys],
+                                       self.depth, min_into_float, self.device)
+                else:
+                    dev.launch_private(raster_shadow_map, indices.shape[0] // 3,
+                                       [points, indices, sm, faces, self._no_keys], self.depth, min_into_float,
+                                       self.device)
         else:
             self.depth = wp.empty(max(total, 1), dtype=float, device=self.device)
             for sm in structs:
@@ -484,9 +562,15 @@ class LightShafts(Technique):
             lo, hi = scene_bounds(scene)
             corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
             t_far = float(np.max(np.linalg.norm(corners - np.asarray(cam.origin, float), axis=1)))
-            dev.launch_private(raster_visible, indices.shape[0] // 3,
-                               [points, indices, camera_view(view), KEY_RANGE / t_far, self.depth], keys, min_into_int64,
-                               self.device)
+            if self._tiled():
+                starts, total = self._tile_starts(count_visible_tiles, [points, indices, camera_view(view)])
+                dev.launch_private(raster_visible_tiles, total,
+                                   [points, indices, camera_view(view), starts, KEY_RANGE / t_far, self.depth], keys,
+                                   min_into_int64, self.device)
+            else:
+                dev.launch_private(raster_visible, indices.shape[0] // 3,
+                                   [points, indices, camera_view(view), KEY_RANGE / t_far, self.depth], keys,
+                                   min_into_int64, self.device)
         dev.launch(shade_visible_surface, npix, [view, u.media.struct, u.surfaces, u.lights, self.maps, self.depth,
                                                  self.settings["shadow_steps"], self.settings["steps"],
                                                  wp.vec3(*scene.background), keys, points, indices, parent,
