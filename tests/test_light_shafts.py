@@ -284,3 +284,4 @@ def test_moving_the_camera_keeps_the_shadow_maps():
     status = {n: s.status for n, s in r.render().stages.items()}
     assert status["shadow_maps"] == status["surface"] == "ran"  # the surfaces' lighting changed
     assert status["surfaces"] == status["medium"] == "cached"  # not the BVH nor the medium
+    assert status["visible"] == "cached"  # nor what the camera sees

@@ -225,17 +225,13 @@ def light_arriving(m: Media, lights: wp.array(dtype=Light), maps: wp.array(dtype
 
 
 @wp.kernel
-def shade_visible_surface(offset: int, cam: PinholeCamera, m: Media, s: Surfaces, lights: wp.array(dtype=Light),
-                          maps: wp.array(dtype=ShadowMap), depth: wp.array(dtype=float), shadow_steps: int,
-                          view_steps: int, background: wp.vec3, keys: wp.array(dtype=wp.int64),
-                          points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int),
-                          parent: wp.array(dtype=int), t_hit: wp.array(dtype=float),
-                          radiance: wp.array(dtype=wp.vec3)):
-    """The paper's step 1: the visible surface per pixel (from the rasterised ``keys``, or a ray
-    cast when there are none) and the radiance it reflects (direct light through the shadow maps
-    and the media), then its part of equation 1, L0 exp(-tau s): attenuated along the view ray
-    (heterogeneous media by ``view_steps`` midpoints, as the march). Pixels without a surface
-    take the attenuated ``background``."""
+def view_segments(offset: int, cam: PinholeCamera, m: Media, s: Surfaces, keys: wp.array(dtype=wp.int64),
+                  points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int), parent: wp.array(dtype=int),
+                  t_hit: wp.array(dtype=float), face: wp.array(dtype=int), segs: wp.array(dtype=wp.vec3)):
+    """Per pixel, what depends on the camera alone: the visible surface (from the rasterised
+    ``keys``; a ray cast through the BVH when there are none; nothing without surfaces), its
+    distance and face, and the view ray's segment in the media, (t_in, t_end, t_out) with
+    t_end = min(t_out, surface)."""
     tid = wp.tid() + offset
     d = camera_ray(cam, float(tid % cam.width) + 0.5, float(tid / cam.width) + 0.5)
     hit = bool(False)
@@ -245,17 +241,37 @@ def shade_visible_surface(offset: int, cam: PinholeCamera, m: Media, s: Surfaces
     if keys.shape[0] > 1:
         hit, t, n, f = key_hit(keys[tid], points, indices, cam.origin, d)
         if hit:
-            f = parent[f]  # the face the rasterised piece came from: its material
-    else:
+            f = parent[f]  # the face the rasterised piece came from
+    elif s.present == 1:
         hit, t, n, f = surface_hit(s, cam.origin, d, INF)
-    t_hit[tid] = t
-    if not hit:  # the background, attenuated through the media
-        _t_in, t_out = ray_box(cam.origin, d, m.all_min, m.all_max)
-        t = t_out
+    if face.shape[0] > 1:
+        t_hit[tid] = t
+        face[tid] = f
+    a, b = ray_box(cam.origin, d, m.all_min, m.all_max)
+    segs[tid] = wp.vec3(wp.max(a, 0.0), wp.min(b, t), b)
+
+
+@wp.kernel
+def shade_visible_surface(offset: int, cam: PinholeCamera, m: Media, s: Surfaces, lights: wp.array(dtype=Light),
+                          maps: wp.array(dtype=ShadowMap), depth: wp.array(dtype=float), shadow_steps: int,
+                          view_steps: int, background: wp.vec3, mesh_points: wp.array(dtype=wp.vec3),
+                          mesh_indices: wp.array(dtype=int), t_hit: wp.array(dtype=float),
+                          face: wp.array(dtype=int), segs: wp.array(dtype=wp.vec3),
+                          radiance: wp.array(dtype=wp.vec3)):
+    """The paper's step 1: the radiance the visible surface reflects (direct light through the
+    shadow maps and the media), then its part of equation 1, L0 exp(-tau s): attenuated along
+    the view ray (heterogeneous media by ``view_steps`` midpoints, as the march). Pixels without
+    a surface take the attenuated ``background``."""
+    tid = wp.tid() + offset
+    d = camera_ray(cam, float(tid % cam.width) + 0.5, float(tid / cam.width) + 0.5)
+    f = face[tid]
+    t = wp.where(f >= 0, t_hit[tid], segs[tid][2])  # the surface, or where the view leaves the media
     tau_v = marched_optical_depth(m, cam.origin, d, 0.0, t, view_steps)
     L = wp.cw_mul(background, transmittance_rgb(tau_v))
-    if hit:
+    if f >= 0:
         L = wp.vec3(0.0)
+        a = mesh_points[mesh_indices[3 * f]]
+        n = wp.normalize(wp.cross(mesh_points[mesh_indices[3 * f + 1]] - a, mesh_points[mesh_indices[3 * f + 2]] - a))
         n = wp.where(wp.dot(n, d) < 0.0, n, -n)
         p = cam.origin + t * d + RAY_EPS * n
         for l in range(lights.shape[0]):
@@ -268,7 +284,7 @@ def shade_visible_surface(offset: int, cam: PinholeCamera, m: Media, s: Surfaces
 
 @wp.kernel
 def march_shafts(offset: int, cam: PinholeCamera, m: Media, lights: wp.array(dtype=Light),
-                 maps: wp.array(dtype=ShadowMap), depth: wp.array(dtype=float), t_hit: wp.array(dtype=float),
+                 maps: wp.array(dtype=ShadowMap), depth: wp.array(dtype=float), segs: wp.array(dtype=wp.vec3),
                  background: wp.vec3, st: ShaftSettings, surface_out: wp.array(dtype=wp.vec3),
                  partial_out: wp.array(dtype=wp.vec3)):
     """This pixel's share of the in-scattering sum (its samples k = k0, k0 + M^2, ...). With
@@ -279,12 +295,10 @@ def march_shafts(offset: int, cam: PinholeCamera, m: Media, lights: wp.array(dty
     py = tid / cam.width
     o = cam.origin
     d = camera_ray(cam, float(px) + 0.5, float(py) + 0.5)
-    ts = INF
-    if st.has_depth == 1:
-        ts = t_hit[tid]
-    a, b = ray_box(o, d, m.all_min, m.all_max)
-    ta = wp.max(a, 0.0)
-    tb = wp.min(b, ts)
+    seg = segs[tid]  # from the visible stage: (t_in, up to the surface, t_out)
+    ta = seg[0]
+    tb = seg[1]
+    b = seg[2]
     if st.has_depth == 0:
         surface_out[tid] = wp.cw_mul(background, transmittance_rgb(marched_optical_depth(m, o, d, 0.0, b, st.steps)))
     acc = wp.vec3(0.0)
@@ -437,6 +451,9 @@ class LightShafts(Technique):
         self.maps = None
         self.depth = wp.full(1, INF, dtype=float, device=device)
         self._no_keys = wp.full(1, NO_HIT, dtype=wp.int64, device=device)  # "ray cast instead"
+        self._no_index = wp.full(1, -1, dtype=int, device=device)
+        self._no_points = wp.zeros(1, dtype=wp.vec3, device=device)
+        self.segs = self.face = None
         self._arrays = {}
         self._raster_source = self._raster_mesh = None
         self.t_hit = self.radiance = None
@@ -456,12 +473,13 @@ class LightShafts(Technique):
             Stage("shadow_maps", self._shadow_maps, reads=("lights",),
                   settings=("shadow_map_res", "depth_bias", "raster", "raster_tiles"),
                   after=("surfaces", "lights"), needed=occluders and bool(scene.lights)),
-            Stage("surface", self._surface, reads=("camera", "background"),
-                  settings=("shadow_steps", "raster", "raster_tiles", "steps"),
-                  after=("medium", "surfaces", "lights", "shadow_maps"), needed=occluders),
+            Stage("visible", self._visible, reads=("camera",), settings=("raster", "raster_tiles"),
+                  after=("medium", "surfaces")),
+            Stage("surface", self._surface, reads=("camera", "background"), settings=("shadow_steps", "steps"),
+                  after=("medium", "surfaces", "lights", "shadow_maps", "visible"), needed=occluders),
             Stage("march", self._march, reads=("camera", "background"),
                   settings=("steps", "block", "jitter", "scattering", "shadow_steps", "seed", "spacing"),
-                  after=("medium", "lights", "shadow_maps", "surface")),
+                  after=("medium", "lights", "shadow_maps", "visible", "surface")),
             Stage("block_rows", self._block_rows, settings=("block",), after=("march",),
                   needed=interleaved and not depth_aware),
             Stage("block_cols", self._block_cols, settings=("block",), after=("block_rows",),
@@ -548,16 +566,19 @@ class LightShafts(Technique):
             arr.fill_(fill)
         return arr
 
-    def _surface(self):
+    def _visible(self):
         scene, cam, u = self.scene, self.scene.camera, self.uploads
         npix = cam.width * cam.height
-        self._no_shadow_maps()
-        self.t_hit = self._scratch("t_hit", npix, float)
-        self.radiance = self._scratch("radiance", npix, wp.vec3)
         view = pinhole(cam)
+        self.segs = self._scratch("segs", npix, wp.vec3)
         keys = self._no_keys
-        points, indices, parent = self._mesh_arrays()
-        if self.settings["raster"]:
+        points, indices, parent = self._no_points, self._no_index, self._no_index
+        t_hit, face = self.depth, self._no_index  # no surfaces: nothing to keep but the segments
+        if scene.surfaces:
+            t_hit = self.t_hit = self._scratch("t_hit", npix, float)
+            face = self.face = self._scratch("face", npix, int)
+            points, indices, parent = self._mesh_arrays()
+        if scene.surfaces and self.settings["raster"]:
             keys = self._scratch("keys", npix, wp.int64, fill=NO_HIT)
             lo, hi = scene_bounds(scene)
             corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
@@ -571,10 +592,19 @@ class LightShafts(Technique):
                 dev.launch_private(raster_visible, indices.shape[0] // 3,
                                    [points, indices, camera_view(view), KEY_RANGE / t_far, self.depth], keys,
                                    min_into_int64, self.device)
-        dev.launch(shade_visible_surface, npix, [view, u.media.struct, u.surfaces, u.lights, self.maps, self.depth,
-                                                 self.settings["shadow_steps"], self.settings["steps"],
-                                                 wp.vec3(*scene.background), keys, points, indices, parent,
-                                                 self.t_hit, self.radiance], self.device)
+        dev.launch(view_segments, npix, [view, u.media.struct, u.surfaces, keys, points, indices, parent, t_hit, face,
+                                         self.segs], self.device)
+
+    def _surface(self):
+        scene, cam, u = self.scene, self.scene.camera, self.uploads
+        npix = cam.width * cam.height
+        self._no_shadow_maps()
+        self.radiance = self._scratch("radiance", npix, wp.vec3)
+        mesh = u._surfaces.mesh
+        dev.launch(shade_visible_surface, npix, [pinhole(cam), u.media.struct, u.surfaces, u.lights, self.maps,
+                                                 self.depth, self.settings["shadow_steps"], self.settings["steps"],
+                                                 wp.vec3(*scene.background), mesh.points, mesh.indices, self.t_hit,
+                                                 self.face, self.segs, self.radiance], self.device)
 
     def _march(self):
         scene, u, cfg = self.scene, self.uploads, self.settings
@@ -585,7 +615,6 @@ class LightShafts(Technique):
         if has_depth:
             self.surface = self.radiance  # attenuated by the surface pass
         else:
-            self.t_hit = self.depth
             self.surface = self._scratch("surface", npix, wp.vec3)
         st = ShaftSettings()
         st.steps, st.block, st.jitter = cfg["steps"], self.effective_block(), cfg["jitter"]
@@ -593,7 +622,7 @@ class LightShafts(Technique):
         st.spacing = cfg["spacing"]
         st.has_depth = int(has_depth)
         self.partial = self._scratch("partial", npix, wp.vec3)
-        dev.launch(march_shafts, npix, [pinhole(cam), u.media.struct, u.lights, self.maps, self.depth, self.t_hit,
+        dev.launch(march_shafts, npix, [pinhole(cam), u.media.struct, u.lights, self.maps, self.depth, self.segs,
                                         wp.vec3(*scene.background), st, self.surface, self.partial], self.device)
         if st.block == 1 or not cfg["scattering"] or not scene.media:
             self.image = wp.empty(npix, dtype=wp.vec3, device=self.device)  # the frame's own: not reused
