@@ -218,6 +218,43 @@ def _shafts_edges(params: dict, device: str, quick: bool) -> dict:
     return row
 
 
+def _shafts_speedup_grid(quick: bool) -> list[dict]:
+    if quick:
+        return [{"steps": 16, "block": 2}]
+    return [{"steps": n, "block": 4} for n in (16, 32, 64, 128, 256)] + [{"steps": 64, "block": m} for m in (2, 8)]
+
+
+def _shafts_speedup(params: dict, device: str, quick: bool) -> dict:
+    """The march stage alone with M x M interleaving and without it (M = 1), same N, the two
+    timed in alternation in one process so the machine's drift hits both alike: min and
+    median of each, and the speed-up of the mins (the issue's target: >= 0.7 M^2)."""
+    import statistics
+    import time
+
+    import warp as wp
+
+    n, m = params["steps"], params["block"]
+    scene = _shafts_scene(quick)
+    rs = {k: wv.Renderer(scene, technique="light_shafts", device=device, steps=n, block=k) for k in (1, m)}
+    t0 = time.perf_counter()
+    for r in rs.values():
+        r.render()
+    first = (time.perf_counter() - t0) * 1000.0
+    times = {1: [], m: []}
+    for _ in range(2 if quick else 5):
+        for k, r in rs.items():
+            t = time.perf_counter()
+            r.technique._march()
+            wp.synchronize_device(r.technique.device)
+            times[k].append((time.perf_counter() - t) * 1000.0)
+    ms = {k: {"min": min(v), "median": statistics.median(v)} for k, v in times.items()}
+    speedup = ms[1]["min"] / ms[m]["min"]
+    return {"first_frame_ms": first, "median_ms": ms[m]["median"], "frames": len(times[m]),
+            "march_ms_m1": ms[1], "march_ms": ms[m], "speedup": speedup,
+            "speedup_median": ms[1]["median"] / ms[m]["median"], "fraction_of_m2": speedup / (m * m),
+            "stages": {}, "scene": f"colonnade-shafts {scene.camera.width}x{scene.camera.height}"}
+
+
 def _shafts_paper_fps(table: dict, params: dict):
     return next((r["fps"] for r in table["rows"] if r["mode"] == params.get("mode")), None)
 
@@ -617,6 +654,9 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
     Sweep("light-shafts-sweep", "light_shafts frame time over N (steps), M (block) and shadow-map resolution, "
           "colonnade-shafts 800x600, camera and light moving",
           "light_shafts", "paper", _shafts_sweep_grid, _shafts_frame, issue=4),
+    Sweep("light-shafts-speedup", "light_shafts: the march stage's speed-up from M x M interleaving over the same N "
+          "without it, both timed in alternation (target >= 0.7 M^2), colonnade-shafts 800x600",
+          "light_shafts", "speedup", _shafts_speedup_grid, _shafts_speedup, issue=4),
     Sweep("light-shafts-edges", "light_shafts: the error interleaving leaves at depth discontinuities (mean |interleaved"
           " - per-pixel N = 64| / mean, near depth jumps and elsewhere), with the paper's block sum (edges = 0) and the "
           "depth-aware one (edges = 1), colonnade-shafts 800x600",
