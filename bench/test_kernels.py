@@ -56,10 +56,10 @@ def test_illumination_network_build(benchmark):
     benchmark.pedantic(build, rounds=5, iterations=1)
 
 
-@pytest.mark.parametrize("stage,raster", [("shadow_maps", 1), ("shadow_maps", 0), ("surface", 1), ("surface", 0)])
+@pytest.mark.parametrize("stage,raster", [("shadow_maps", 1), ("shadow_maps", 0), ("visible", 1), ("visible", 0)])
 def test_light_shafts_passes(benchmark, stage, raster):
-    """papers/001's shadow-map and surface passes on colonnade-shafts (65 660 triangles, 800x600,
-    256^2 cube map): rasterised (raster = 1) against BVH ray casts (raster = 0)."""
+    """papers/001's shadow-map pass and visible-surface pass on colonnade-shafts (65 660 triangles,
+    800x600, 256^2 cube map): rasterised (raster = 1) against BVH ray casts (raster = 0)."""
     import warp as wp
 
     from bench.sweeps import _shafts_scene

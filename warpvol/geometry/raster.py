@@ -267,14 +267,18 @@ def owner(starts: wp.array(dtype=int), w: int) -> int:
 
 
 @wp.func
+def triangle_at(points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int), f: int):
+    """The three vertices of triangle f of an indexed mesh."""
+    return points[indices[3 * f]], points[indices[3 * f + 1]], points[indices[3 * f + 2]]
+
+
+@wp.func
 def key_hit(key: wp.int64, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int), o: wp.vec3, d: wp.vec3):
     """The surface a pixel's key names: (hit, t, unit geometric normal, face), as ``surface_hit``."""
     if key == NO_HIT:
         return False, INF, wp.vec3(0.0, 1.0, 0.0), int(-1)
     f = int(key & wp.int64(0xFFFFFFFF))
-    a = points[indices[3 * f]]
-    b = points[indices[3 * f + 1]]
-    c = points[indices[3 * f + 2]]
+    a, b, c = triangle_at(points, indices, f)
     n = wp.normalize(wp.cross(b - a, c - a))
     return True, wp.dot(a - o, n) / wp.dot(d, n), n, f  # the ray meets the triangle's plane there
 

@@ -67,7 +67,7 @@ from .. import device as dev
 from ..geometry.camera import PinholeCamera, camera_ray, camera_view, pinhole
 from ..geometry.mesh import Surfaces, surface_hit
 from ..geometry.raster import (KEY_RANGE, NO_HIT, RasterView, key_hit, owner, raster_triangle,
-                              raster_triangle_tile, split_long_edges, triangle_tiles)
+                              raster_triangle_tile, split_long_edges, triangle_at, triangle_tiles)
 from ..geometry.shadowmap import (ShadowMap, map_faces_touched, map_view, shadow_map_for, shadow_visibility,
                                   texel_ray, texel_world_size, texels)
 from ..media.volume import Media, homogeneous_optical_depth, in_scatter_at, ray_box, scene_bounds, sigma_t_at
@@ -124,9 +124,7 @@ def raster_shadow_map(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.
                       faces: int, no_keys: wp.array(dtype=wp.int64), depth: wp.array(dtype=float)):
     """One thread per triangle: its nearest distances into the texels of each face of the map."""
     f = wp.tid() + offset
-    a = points[indices[3 * f]]
-    b = points[indices[3 * f + 1]]
-    c = points[indices[3 * f + 2]]
+    a, b, c = triangle_at(points, indices, f)
     touched = map_faces_touched(sm, a, b, c)
     for face in range(faces):
         if (touched >> face) & 1 == 1:
@@ -138,8 +136,8 @@ def raster_visible(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.arr
                    t_scale: float, no_depth: wp.array(dtype=float), keys: wp.array(dtype=wp.int64)):
     """One thread per triangle: (distance, triangle) keys of the nearest surface per pixel."""
     f = wp.tid() + offset
-    raster_triangle(view, points[indices[3 * f]], points[indices[3 * f + 1]], points[indices[3 * f + 2]], f, 1,
-                    t_scale, no_depth, keys)
+    a, b, c = triangle_at(points, indices, f)
+    raster_triangle(view, a, b, c, f, 1, t_scale, no_depth, keys)
 
 
 @wp.kernel
@@ -147,9 +145,7 @@ def count_map_tiles(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.ar
                     faces: int, counts: wp.array(dtype=int)):
     """Per triangle: its TILE x TILE pieces over the faces of the map it reaches."""
     f = wp.tid() + offset
-    a = points[indices[3 * f]]
-    b = points[indices[3 * f + 1]]
-    c = points[indices[3 * f + 2]]
+    a, b, c = triangle_at(points, indices, f)
     touched = map_faces_touched(sm, a, b, c)
     n = int(0)
     for face in range(faces):
@@ -165,9 +161,7 @@ def raster_map_tiles(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.a
     """One thread per piece (``starts``: exclusive scan of ``count_map_tiles``): the piece's texels."""
     w = wp.tid() + offset
     f = owner(starts, w)
-    a = points[indices[3 * f]]
-    b = points[indices[3 * f + 1]]
-    c = points[indices[3 * f + 2]]
+    a, b, c = triangle_at(points, indices, f)
     touched = map_faces_touched(sm, a, b, c)
     local = w - starts[f]
     for face in range(faces):
@@ -183,7 +177,8 @@ def raster_map_tiles(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.a
 def count_visible_tiles(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int),
                         view: RasterView, counts: wp.array(dtype=int)):
     f = wp.tid() + offset
-    counts[f] = triangle_tiles(view, points[indices[3 * f]], points[indices[3 * f + 1]], points[indices[3 * f + 2]])
+    a, b, c = triangle_at(points, indices, f)
+    counts[f] = triangle_tiles(view, a, b, c)
 
 
 @wp.kernel
@@ -192,8 +187,8 @@ def raster_visible_tiles(offset: int, points: wp.array(dtype=wp.vec3), indices: 
                          no_depth: wp.array(dtype=float), keys: wp.array(dtype=wp.int64)):
     w = wp.tid() + offset
     f = owner(starts, w)
-    raster_triangle_tile(view, points[indices[3 * f]], points[indices[3 * f + 1]], points[indices[3 * f + 2]], f,
-                         w - starts[f], 1, t_scale, no_depth, keys)
+    a, b, c = triangle_at(points, indices, f)
+    raster_triangle_tile(view, a, b, c, f, w - starts[f], 1, t_scale, no_depth, keys)
 
 
 @wp.kernel
@@ -228,26 +223,27 @@ def light_arriving(m: Media, lights: wp.array(dtype=Light), maps: wp.array(dtype
 
 
 @wp.kernel
-def view_segments(offset: int, cam: PinholeCamera, m: Media, s: Surfaces, keys: wp.array(dtype=wp.int64),
-                  points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int), parent: wp.array(dtype=int),
-                  t_hit: wp.array(dtype=float), face: wp.array(dtype=int), segs: wp.array(dtype=wp.vec3)):
-    """Per pixel, what depends on the camera alone: the visible surface (from the rasterised
-    ``keys``; a ray cast through the BVH when there are none; nothing without surfaces), its
-    distance and face, and the view ray's segment in the media, (t_in, t_end, t_out) with
-    t_end = min(t_out, surface)."""
+def view_segments(offset: int, cam: PinholeCamera, m: Media, s: Surfaces, source: int,
+                  keys: wp.array(dtype=wp.int64), points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int),
+                  parent: wp.array(dtype=int), t_hit: wp.array(dtype=float), face: wp.array(dtype=int),
+                  segs: wp.array(dtype=wp.vec3)):
+    """Per pixel, what depends on the camera alone: the visible surface (``source`` 1: from the
+    rasterised ``keys``; 2: a ray cast through the BVH; 0: no surfaces), its distance and face,
+    and the view ray's segment in the media, (t_in, t_end, t_out) with t_end = min(t_out,
+    surface)."""
     tid = wp.tid() + offset
     d = camera_ray(cam, float(tid % cam.width) + 0.5, float(tid / cam.width) + 0.5)
     hit = bool(False)
     t = float(INF)
     n = wp.vec3(0.0, 1.0, 0.0)
     f = int(-1)
-    if keys.shape[0] > 1:
+    if source == 1:
         hit, t, n, f = key_hit(keys[tid], points, indices, cam.origin, d)
         if hit:
             f = parent[f]  # the face the rasterised piece came from
-    elif s.present == 1:
+    elif source == 2:
         hit, t, n, f = surface_hit(s, cam.origin, d, INF)
-    if face.shape[0] > 1:
+    if source != 0:
         t_hit[tid] = t
         face[tid] = f
     a, b = ray_box(cam.origin, d, m.all_min, m.all_max)
@@ -273,8 +269,8 @@ def shade_visible_surface(offset: int, cam: PinholeCamera, m: Media, s: Surfaces
     L = wp.cw_mul(background, transmittance_rgb(tau_v))
     if f >= 0:
         L = wp.vec3(0.0)
-        a = mesh_points[mesh_indices[3 * f]]
-        n = wp.normalize(wp.cross(mesh_points[mesh_indices[3 * f + 1]] - a, mesh_points[mesh_indices[3 * f + 2]] - a))
+        a, b, c = triangle_at(mesh_points, mesh_indices, f)
+        n = wp.normalize(wp.cross(b - a, c - a))
         n = wp.where(wp.dot(n, d) < 0.0, n, -n)
         p = cam.origin + t * d + RAY_EPS * n
         for l in range(lights.shape[0]):
@@ -595,8 +591,9 @@ class LightShafts(Technique):
                 dev.launch_private(raster_visible, indices.shape[0] // 3,
                                    [points, indices, camera_view(view), KEY_RANGE / t_far, self.depth], keys,
                                    min_into_int64, self.device)
-        dev.launch(view_segments, npix, [view, u.media.struct, u.surfaces, keys, points, indices, parent, t_hit, face,
-                                         self.segs], self.device)
+        source = 0 if not scene.surfaces else (1 if self.settings["raster"] else 2)
+        dev.launch(view_segments, npix, [view, u.media.struct, u.surfaces, source, keys, points, indices, parent, t_hit,
+                                         face, self.segs], self.device)
 
     def _surface(self):
         scene, cam, u = self.scene, self.scene.camera, self.uploads
