@@ -14,33 +14,71 @@ and one line on stderr.
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 
 
-def _parse_set(values: list[str], technique_settings: dict) -> tuple[dict, list[str]]:
-    import tomllib
+class _Parser(argparse.ArgumentParser):
+    """argparse whose errors are one line, like every other bad input: ``warpvol: error: ...``, status 2."""
 
+    def error(self, message):
+        self.exit(2, f"warpvol: error: {message} (see {self.prog} --help)\n")
+
+
+def _integer(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer (allowed: a whole number, e.g. 64)") from None
+
+
+def _finite_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a finite number (allowed: a finite number, e.g. -1.5)")
+    return value
+
+
+def _parse_set(values: list[str], technique: str) -> tuple[dict, list[str]]:
+    """Split ``--set`` items into the technique's settings and scene overrides; a plain key that
+    belongs to another technique is an error here, not an unknown scene key later."""
+    from warpvol.pipeline import SettingsError
+    from warpvol.scene.load import tomllib
+    from warpvol.techniques import TECHNIQUES
+
+    spec = TECHNIQUES[technique].SETTINGS
     settings, overrides = {}, []
     for item in values:
         key, _, value = item.partition("=")
-        if key in technique_settings:
+        if key in spec:
             try:
                 settings[key] = tomllib.loads(f"v = {value}")["v"]
             except tomllib.TOMLDecodeError:
                 settings[key] = value
-        else:
-            overrides.append(item)
+            continue
+        owners = [name for name, cls in TECHNIQUES.items() if key in cls.SETTINGS]
+        if owners:
+            raise SettingsError(f"--set {item}: {key} is a setting of {' and '.join(owners)}, not of {technique} "
+                                f"(allowed for {technique}: {', '.join(sorted(spec)) or 'no settings'}; "
+                                f"or a scene key such as camera.width)")
+        overrides.append(item)
     return settings, overrides
 
 
 def cmd_render(args) -> int:
     import warpvol as wv
     from warpvol.api import technique_class
+    from warpvol.image import check_output_path
     from warpvol.pipeline import SettingsError
 
+    for out in args.out:  # before anything is loaded or rendered
+        check_output_path(out)
     spec = technique_class(args.technique).SETTINGS
-    settings, overrides = _parse_set(args.set or [], spec)
+    settings, overrides = _parse_set(args.set or [], args.technique)
     if args.spp is not None:
         if "spp" not in spec:
             raise SettingsError(f"{args.technique}: --spp does not apply (allowed: with --technique reference)")
@@ -123,16 +161,16 @@ def cmd_scenes(args) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m warpvol", description="Participating media with NVIDIA Warp.")
+    parser = _Parser(prog="python -m warpvol", description="Participating media with NVIDIA Warp.")
     sub = parser.add_subparsers(dest="command", required=True)
     r = sub.add_parser("render", help="render a scene file or a built-in scene to .exr / .png / .npy")
     r.add_argument("scene", help="a .toml scene file or a built-in scene name (see `scenes`)")
     r.add_argument("--technique", default="reference", help="reference | raymarch | light_shafts | rbf_propagation | illumination_network (default: reference)")
     r.add_argument("--out", action="append", required=True, help="output image; repeat for several (.exr .png .npy)")
     r.add_argument("--device", default=None, help="cpu | cuda | cuda:N (default: $WARPVOL_DEVICE, else CUDA if present)")
-    r.add_argument("--spp", type=int, default=None, help="samples per pixel (reference)")
+    r.add_argument("--spp", type=_integer, default=None, help="samples per pixel (reference)")
     r.add_argument("--set", action="append", metavar="KEY=VALUE", help="technique setting or scene key override")
-    r.add_argument("--exposure", type=float, default=0.0, help="PNG exposure in stops (default 0)")
+    r.add_argument("--exposure", type=_finite_float, default=0.0, help="PNG exposure in stops (default 0)")
     r.add_argument("--timings", action="store_true", help="print per-stage times")
     r.set_defaults(func=cmd_render)
     b = sub.add_parser("bench", help="run a benchmark sweep, list them, or write their reports")
@@ -162,6 +200,6 @@ def main(argv: list[str] | None = None) -> int:
     except (SceneError, SettingsError, DeviceError) as exc:
         print(f"warpvol: error: {exc}", file=sys.stderr)
         return 2
-    except ValueError as exc:  # e.g. an unknown image extension
+    except ValueError as exc:  # e.g. an output path that cannot be written
         print(f"warpvol: error: {exc}", file=sys.stderr)
         return 2

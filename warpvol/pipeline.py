@@ -50,11 +50,14 @@ def resolve_settings(technique: str, spec: dict[str, Setting], given: dict, base
             raise SettingsError(f"{technique}: unknown setting {key!r} (allowed: {', '.join(sorted(spec))})")
         s = spec[key]
         kind = type(s.default)
+        allowed = f"allowed: {s.lo:.10g}..{s.hi:.10g}; {s.doc}"
+        if isinstance(value, float) and not np.isfinite(value):
+            raise SettingsError(f"{technique}: setting {key}={value!r} is not finite ({allowed})")
         if isinstance(value, bool) or not isinstance(value, (int, float)) or (kind is int and int(value) != value):
             raise SettingsError(f"{technique}: setting {key}={value!r} must be {'an integer' if kind is int else 'a number'} "
-                                f"(allowed: {s.lo:g}..{s.hi:g}; {s.doc})")
+                                f"({allowed})")
         if not (s.lo <= value <= s.hi):
-            raise SettingsError(f"{technique}: setting {key}={value!r} is out of range (allowed: {s.lo:g}..{s.hi:g}; {s.doc})")
+            raise SettingsError(f"{technique}: setting {key}={value!r} is out of range ({allowed})")
         out[key] = kind(value)
     return out
 

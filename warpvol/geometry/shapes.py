@@ -61,17 +61,32 @@ def sphere(center, radius, rings: int = 24, segments: int = 48):
 
 
 def read_obj(path: str):
-    """Vertices and faces of an .obj file; polygons are fanned into triangles."""
+    """Vertices and faces of an .obj file; polygons are fanned into triangles.
+
+    Raises ``ValueError`` naming the line for a vertex that is not three finite numbers or a
+    face that refers to a vertex that does not exist.
+    """
     verts, faces = [], []
     with open(path) as fh:
-        for line in fh:
+        for n, line in enumerate(fh, 1):
             parts = line.split()
             if not parts:
                 continue
             if parts[0] == "v":
-                verts.append([float(x) for x in parts[1:4]])
+                try:
+                    xyz = [float(x) for x in parts[1:4]]
+                except ValueError:
+                    xyz = []
+                if len(xyz) != 3 or not np.all(np.isfinite(xyz)):
+                    raise ValueError(f"line {n}: vertex {' '.join(parts[1:4])!r} is not 3 finite numbers")
+                verts.append(xyz)
             elif parts[0] == "f":
-                idx = [int(p.split("/")[0]) for p in parts[1:]]
+                try:
+                    idx = [int(p.split("/")[0]) for p in parts[1:]]
+                except ValueError:
+                    raise ValueError(f"line {n}: face {' '.join(parts[1:])!r} is not vertex numbers") from None
+                if len(idx) < 3 or 0 in idx:
+                    raise ValueError(f"line {n}: face {' '.join(parts[1:])!r} needs >= 3 vertex numbers, none 0")
                 idx = [i - 1 if i > 0 else len(verts) + i for i in idx]
                 faces.extend([idx[0], idx[k], idx[k + 1]] for k in range(1, len(idx) - 1))
     if not verts or not faces:

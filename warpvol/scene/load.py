@@ -152,6 +152,41 @@ def _array(t: _Table, name: str, value, shape_tail: tuple, what: str) -> np.ndar
     return a.astype(np.float32)
 
 
+def _load_npy(t: _Table, name: str, path: str, allowed: str) -> np.ndarray:
+    """The numeric array in the .npy file ``path``; anything else fails naming the file and key."""
+    try:
+        with open(path, "rb") as fh:
+            is_npy = fh.read(6) == b"\x93NUMPY"
+        if not is_npy:
+            raise ValueError("not a .npy file")
+        a = np.load(path, allow_pickle=False)
+    except ValueError as exc:
+        t.fail(t.key(name), f"cannot read {path!r}: {'it holds Python objects' if 'allow_pickle' in str(exc) else exc}",
+               allowed)
+    except Exception as exc:  # noqa: BLE001 - a truncated or unreadable file fails the same way
+        t.fail(t.key(name), f"cannot read {path!r}: {type(exc).__name__}: {exc}", allowed)
+    if a.dtype.kind not in "biuf":
+        t.fail(t.key(name), f"cannot read {path!r}: it holds {a.dtype} values, not numbers", allowed)
+    return a
+
+
+def _points(t: _Table, name: str, base_dir: str, what: str, alternatives: str = "a file") -> np.ndarray:
+    """RBF centres or particle positions, (N, 3) with N >= 1, from ``file`` or the list ``name``."""
+    if "file" in t.data:
+        key, allowed = "file", f"a .npy file of shape (N, 3) with at least one {what}"
+        path = t.path("file", base_dir)
+        value = _load_npy(t, "file", path, allowed)
+        if value.size and (value.ndim != 2 or value.shape[1] != 3):
+            t.fail(t.key(key), f"{path!r} holds an array of shape {value.shape}", allowed)
+    else:
+        key, allowed = name, f"[[x, y, z], ...] with at least one {what}, or {alternatives}"
+        value = t.raw(name, allowed=allowed)
+    a = _array(t, key, value, (3,), allowed)
+    if len(a) == 0:
+        t.fail(t.key(key), f"has no {what}s" if key == name else f"{path!r} holds no {what}s", allowed)
+    return a
+
+
 def _camera(data, source) -> Camera:
     t = _Table(data, "camera", source)
     cam = Camera(
@@ -234,10 +269,7 @@ def _medium(data, where, source, base_dir) -> Medium:
             dens = np.asarray(t.raw("density"), dtype=np.float64)
         else:
             path = t.path("file", base_dir)
-            try:
-                dens = np.load(path)
-            except Exception as exc:  # noqa: BLE001 - report any unreadable file the same way
-                t.fail(t.key("file"), f"cannot read {path!r}: {exc}", "a .npy file of shape (D, H, W)")
+            dens = _load_npy(t, "file", path, "a .npy file of shape (D, H, W)")
         key = t.key("density" if "density" in t.data else "file")
         if dens.ndim != 3 or dens.size == 0:
             t.fail(key, f"density has shape {dens.shape}", "a non-empty 3-D array (D, H, W), x fastest")
@@ -250,12 +282,7 @@ def _medium(data, where, source, base_dir) -> Medium:
         m = GridMedium(**common, density=dens.astype(np.float32), bounds_min=bmin, bounds_max=bmax,
                        sigma_t_scale=t.vec3("sigma_t_scale", (1.0, 1.0, 1.0), lo=0.0, scalar_ok=True))
     elif kind == "rbf":
-        if "file" in t.data:
-            path = t.path("file", base_dir)
-            centers = np.load(path)
-        else:
-            centers = t.raw("centers", allowed="[[x, y, z], ...] or file")
-        m = RBFMedium(**common, centers=_array(t, "centers", centers, (3,), "[[x, y, z], ...]"),
+        m = RBFMedium(**common, centers=_points(t, "centers", base_dir, "centre"),
                       radius=t.number("radius", lo=0.0, lo_open=True),
                       peak=t.vec3("peak", lo=0.0, scalar_ok=True))
     else:
@@ -266,16 +293,14 @@ def _medium(data, where, source, base_dir) -> Medium:
             from .procedural import cloud_particles
 
             positions = cloud_particles(
-                count=g.number("count", 1024, 0, 10_000_000, integer=True),
+                count=g.number("count", 1024, 1, 10_000_000, integer=True),
                 seed=g.number("seed", 1, 0, 2**31 - 1, integer=True),
                 center=g.vec3("center", (0.0, 0.0, 0.0)),
                 extent=g.number("extent", 1.0, 0.0, lo_open=True),
             )
             g.finish()
-        elif "file" in t.data:
-            positions = np.load(t.path("file", base_dir))
         else:
-            positions = t.raw("positions", allowed="generator, file or positions")
+            positions = _points(t, "positions", base_dir, "particle", "a file or a generator")
         m = ParticleMedium(**common, positions=_array(t, "positions", positions, (3,), "[[x, y, z], ...]"),
                            radius=radius, sigma_t=t.vec3("sigma_t", lo=0.0, scalar_ok=True))
     t.finish()
@@ -298,7 +323,8 @@ def _surface(data, where, source, base_dir) -> Surface:
         try:
             v, f = shapes.read_obj(path)
         except (OSError, ValueError) as exc:
-            t.fail(t.key("file"), f"cannot read {path!r}: {exc}", "a triangle or polygon .obj file")
+            t.fail(t.key("file"), f"cannot read {path!r}: {exc}",
+                   "a triangle or polygon .obj file, vertices 3 finite numbers")
     elif kind == "box":
         v, f = shapes.box(t.vec3("center", (0.0, 0.0, 0.0)), t.vec3("size", lo=0.0, lo_open=True))
     elif kind == "plane":
@@ -404,6 +430,9 @@ def load_scene(scene, overrides: list[str] | None = None) -> Scene:
             data = tomllib.load(fh)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{path}: not valid TOML: {exc} (allowed: TOML as in DESIGN.md)") from None
+    except UnicodeDecodeError as exc:
+        raise SceneError(f"{path}: not a text file: byte {exc.start} is not UTF-8 "
+                         "(allowed: a UTF-8 TOML scene file)") from None
     return scene_from_dict(apply_overrides(data, overrides or [], path), path, os.path.dirname(os.path.abspath(path)))
 
 

@@ -555,7 +555,7 @@ class IlluminationNetwork(Technique):
 
     def __init__(self, scene, device, settings, progress=False):
         super().__init__(scene, device, settings, progress)
-        bad = [f"{k} {m.type}" for k, m in enumerate(scene.media) if m.type != "particles"]
+        bad = [f"media[{k}] of type {m.type}" for k, m in enumerate(scene.media) if m.type != "particles"]
         if bad or not scene.media:
             raise SettingsError(f"{NAME}: renders particle media only (scene {scene.name!r} has "
                                 f"{', '.join(bad) if bad else 'no media'}; allowed: type = \"particles\")")
