@@ -6,8 +6,9 @@ volume (EV), optical depth propagated from each light through it into an opacity
 propagation volume (OPV) by a 6-neighbour gathering wavefront (equations 6-7), and a
 fixed-step ray march that reads both (equations 5, 8-10). Stages:
 
-* ``inject`` (reads the medium): sigma_t at the centres of an n^3 grid over the scene's
-  surfaces (or, without surfaces, its media). Each RBF adds itself to the cells within its
+* ``inject`` (reads the medium): sigma_t at the centres of an n^3 grid over a box that
+  holds the media (see ``volume_bounds``: the surfaces' box when it is a room around them,
+  as the paper's Cornell box, else the media's own bounds; no axis degenerate). Each RBF adds itself to the cells within its
   cut-off radius only (one thread per RBF, atomic adds), so the cost grows with the number
   of RBFs times the cells one covers, never RBFs x cells. The cut-off is the reference's,
   ``CUTOFF`` = 5 sigma: beyond it a Gaussian has fallen to exp(-12.5) = 3.7e-6 of its
@@ -31,12 +32,18 @@ fixed-step ray march that reads both (equations 5, 8-10). Stages:
   (Jacobi, as the paper's fragment shader; 0 = 3n sweeps, enough for the wave to cross
   the grid); ``wavefront = 1`` (the paper's future work) updates only the shell of cells
   at Manhattan distance k from the light at step k, in place, so each cell is computed
-  once (the other cells of each launch only test their shell index and return).
+  once (the other cells of each launch only test their shell index and return). Only the
+  shells that hold a grid cell are launched, from each light's nearest to its farthest
+  cell: at most 3(n - 1) + 1 launches wherever the light is (a light outside the grid
+  counts from its cell clamped to one cell outside the grid, which shifts every cell's
+  distance by the same amount, so the order of the shells is unchanged).
 * ``march`` (reads the camera): from the camera to the nearest surface in fixed steps of
   the grid's diagonal / ``steps``: sigma_t from the EV, optical depth to each light from the
   OPV (both trilinear), inverse-square falloff and the phase function, integrated exactly
   over each step; surfaces shaded with Phong (Lambert + normalised Phong) and attenuated by
-  both optical depths (equation 10). Surfaces do not occlude lights (as in the paper).
+  both optical depths (equation 10). Surfaces do not occlude lights (as in the paper). A
+  surface point outside the volume reads the OPV where its path to the light enters the
+  volume (no medium lies outside it), or nothing when that path misses the volume.
 
 The EV and OPV store RGB (an RGB sigma_t propagates per channel), one OPV entry per light
 and cell; the first medium's albedo and phase function serve the whole volume.
@@ -54,13 +61,14 @@ from ..geometry.camera import PinholeCamera, camera_ray, pinhole
 from ..geometry.mesh import Surfaces, surface_hit
 from ..media.grid import grid_trilinear
 from ..media.rbf import CUTOFF
-from ..media.volume import Media, MediaBuffers, ray_box, scene_bounds, sigma_t_at
+from ..media.volume import Media, MediaBuffers, medium_bounds, ray_box, scene_bounds, sigma_t_at
 from ..physics.brdf import brdf_eval
 from ..physics.constants import INF
 from ..physics.lights import DIRECTIONAL, Light, light_incident
 from ..physics.phase import Phase, phase_eval, phase_struct
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Setting, Stage, Technique
+from ..scene.model import RBFMedium
 from ..upload import SceneUploads
 
 NAME = "rbf_propagation"
@@ -71,6 +79,53 @@ SETTINGS = {
     "wavefront": Setting(1, 0, 1, "1: update only the wavefront shell per step; 0: sweep the whole grid"),
     "iterations": Setting(0, 0, 1 << 16, "whole-grid sweeps when wavefront = 0 (0: 3 x grid)"),
 }
+
+
+ROOM = 2.0  # the surfaces' box is a room around the media when no wider than ROOM x theirs, per axis
+THINNEST = 0.01  # no axis of the volume thinner than this fraction of its widest
+
+
+def volume_bounds(scene) -> tuple[np.ndarray, np.ndarray]:
+    """The box (lo, hi) the EV and OPV cover.
+
+    * The media's bounds (RBFs to their cut-off), so every medium is inside and its cells go
+      to the media alone: surfaces reach the OPV through ``surface_optical_depth``, exactly
+      wherever they lie, so spanning them buys nothing and a floor plane 8 wide under a
+      medium 2 wide would leave the medium a quarter of the cells per axis (and a plane
+      alone gave the volume zero thickness: NaN images, issue 12).
+    * Except when the surfaces' box is a room around the media (the paper's Cornell box):
+      it holds every RBF centre and every other medium whole, and is no more than ``ROOM``
+      times the media's bounds on any axis. Then the room is the volume, as in the paper:
+      cells cover the room, which the camera sees, and what falls outside are RBF tails past
+      the walls (below 2.3 sigma from a centre in rbf-single), hidden behind the walls but
+      at an open side. This keeps rbf-single, rbf-cornell and rbf-thick-fog as they were.
+    * Without media, the surfaces' box ([-1, 1]^3 without either).
+
+    Then every axis thinner than ``THINNEST`` of the widest is padded about its centre to
+    that thickness: a zero-thickness axis divides by zero, and a thickness near float32's
+    rounding (1e-7 of the coordinates) makes cell indices and trilinear weights noise. 1%
+    keeps the thinnest cells (n <= 512) 200 times above that rounding, and a medium
+    thinner than that is crossed in about one march step at the default 64 steps per
+    diagonal anyway, so the padding costs no resolution the march could use.
+    """
+    boxes = [b for b in map(medium_bounds, scene.media) if b is not None]
+    if not boxes:
+        lo, hi = scene_bounds(scene, media=False)
+    else:
+        lo, hi = np.min([b[0] for b in boxes], 0), np.max([b[1] for b in boxes], 0)
+        if scene.surfaces:
+            cores = [(m.centers.min(0), m.centers.max(0)) if isinstance(m, RBFMedium) else b
+                     for m, b in zip([m for m in scene.media if medium_bounds(m) is not None], boxes)]
+            clo, chi = np.min([c[0] for c in cores], 0), np.max([c[1] for c in cores], 0)
+            slo, shi = scene_bounds(scene, media=False)
+            if (slo <= clo).all() and (chi <= shi).all() and (shi - slo <= ROOM * (hi - lo)).all():
+                lo, hi = slo, shi
+    lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+    ext = hi - lo
+    widest = ext.max() if ext.max() > 0 else 1.0
+    half = 0.5 * np.maximum(ext, THINNEST * widest)
+    mid = 0.5 * (lo + hi)
+    return np.where(ext < THINNEST * widest, mid - half, lo), np.where(ext < THINNEST * widest, mid + half, hi)
 
 
 @wp.struct
@@ -140,31 +195,35 @@ def light_flow(light: Light, x: wp.vec3) -> wp.vec3:
         return light.direction
     d = x - light.position
     l2 = wp.dot(d, d)
+    if l2 > 1.0e30:  # a light far away: |d|^2 overflows float32, so scale d down first
+        d = d / wp.max(wp.abs(d[0]), wp.max(wp.abs(d[1]), wp.abs(d[2])))
+        l2 = wp.dot(d, d)
     if l2 <= 0.0:
         return wp.vec3(0.0)
     return d / wp.sqrt(l2)
 
 
 @wp.func
-def anchor_offset(light: Light, v: Volume, i: int, j: int, k: int) -> wp.vec3i:
-    """Cell offset from the light's cell (point, spot) or, for a directional light, from the
-    grid's most upwind corner, in the light's travel sense (non-negative on used axes)."""
+def anchor_offset(light: Light, g: wp.vec3i, v: Volume, i: int, j: int, k: int) -> wp.vec3i:
+    """Cell offset from the light's cell ``g`` (point, spot; clamped to [-1, n] per axis, see
+    ``light_cells``) or, for a directional light, from the grid's most upwind corner, in the
+    light's travel sense (non-negative on used axes)."""
     if light.kind == DIRECTIONAL:
         w = light.direction
         oi = wp.where(w[0] > 0.0, i, wp.where(w[0] < 0.0, v.n[0] - 1 - i, 0))
         oj = wp.where(w[1] > 0.0, j, wp.where(w[1] < 0.0, v.n[1] - 1 - j, 0))
         ok = wp.where(w[2] > 0.0, k, wp.where(w[2] < 0.0, v.n[2] - 1 - k, 0))
         return wp.vec3i(oi, oj, ok)
-    g = wp.cw_div(light.position - v.lo, v.h)
-    return wp.vec3i(wp.abs(i - int(wp.floor(g[0]))), wp.abs(j - int(wp.floor(g[1]))), wp.abs(k - int(wp.floor(g[2]))))
+    return wp.vec3i(wp.abs(i - g[0]), wp.abs(j - g[1]), wp.abs(k - g[2]))
 
 
 @wp.kernel
 def propagate_optical_depth(offset: int, ev: wp.array(dtype=wp.vec3), v: Volume, lights: wp.array(dtype=Light),
-                            rule: int, shell: int, tau_in: wp.array(dtype=wp.vec3), tau_out: wp.array(dtype=wp.vec3)):
+                            light_cell: wp.array(dtype=wp.vec3i), shell_base: wp.array(dtype=int), rule: int,
+                            shell: int, tau_in: wp.array(dtype=wp.vec3), tau_out: wp.array(dtype=wp.vec3)):
     """One propagation step for every (light, cell): equation 6 (rule 0) or its corrected form.
-    ``shell`` >= 0: update only cells at that Manhattan distance from the light (wavefront,
-    in place: tau_in is tau_out); -1: a whole-grid Jacobi sweep."""
+    ``shell`` >= 0: update only cells at Manhattan distance ``shell_base[light] + shell`` from
+    the light (wavefront, in place: tau_in is tau_out); -1: a whole-grid Jacobi sweep."""
     tid = wp.tid() + offset
     cells = v.n[0] * v.n[1] * v.n[2]
     l = tid / cells
@@ -172,8 +231,8 @@ def propagate_optical_depth(offset: int, ev: wp.array(dtype=wp.vec3), v: Volume,
     i = c % v.n[0]
     j = (c / v.n[0]) % v.n[1]
     k = c / (v.n[0] * v.n[1])
-    a = anchor_offset(lights[l], v, i, j, k)
-    if shell >= 0 and a[0] + a[1] + a[2] != shell:
+    a = anchor_offset(lights[l], light_cell[l], v, i, j, k)
+    if shell >= 0 and a[0] + a[1] + a[2] != shell_base[l] + shell:
         return
     x = cell_centre(v, i, j, k)
     sig = ev[c]
@@ -236,11 +295,34 @@ def march_exact_optical_depth(offset: int, ev: wp.array(dtype=wp.vec3), v: Volum
     tau = wp.vec3(0.0)
     if t1 > 0.0:
         dt = wp.min(v.h[0], wp.min(v.h[1], v.h[2])) / float(per_cell)
-        steps = int(wp.ceil(t1 / dt))
+        # t1 <= sqrt(3) n h on a cubic grid, so the cap binds only for flat cells, where the
+        # thinnest cell would otherwise set the work (n per_cell / thinness steps)
+        cap = 2 * wp.max(v.n[0], wp.max(v.n[1], v.n[2])) * per_cell
+        steps = int(wp.min(wp.ceil(t1 / dt), float(cap)))
         dt = t1 / float(steps)
         for s in range(steps):
             tau += volume_lookup(ev, 0, v, x + (float(s) + 0.5) * dt * wi) * dt
     out[tid] = tau
+
+
+@wp.func
+def surface_optical_depth(opv: wp.array(dtype=wp.vec3), base: int, v: Volume, p: wp.vec3, wi: wp.vec3,
+                          dist: float) -> wp.vec3:
+    """Optical depth from a surface point p to a light (direction wi, distance dist) from the
+    OPV. On the volume (within a rounding tolerance) it is read at p, clamped in; outside, no
+    medium lies between p and the volume, so it is read where the segment p -> light enters
+    the volume, and is 0 when the segment misses the volume. (Clamping an outside point to
+    the nearest face instead would stretch the face's shadows over every surface beyond it.)"""
+    pc = wp.vec3(wp.clamp(p[0], v.lo[0], v.hi[0]), wp.clamp(p[1], v.lo[1], v.hi[1]), wp.clamp(p[2], v.lo[2], v.hi[2]))
+    if wp.length(p - pc) <= 1.0e-4 * wp.length(v.hi - v.lo):
+        return volume_lookup(opv, base, v, pc)
+    a, b = ray_box(p, wi, v.lo, v.hi)
+    ta = wp.max(a, 0.0)
+    if ta > wp.min(b, dist):
+        return wp.vec3(0.0)
+    q = p + ta * wi
+    q = wp.vec3(wp.clamp(q[0], v.lo[0], v.hi[0]), wp.clamp(q[1], v.lo[1], v.hi[1]), wp.clamp(q[2], v.lo[2], v.hi[2]))
+    return volume_lookup(opv, base, v, q)
 
 
 @wp.kernel
@@ -278,13 +360,11 @@ def march_volumes(offset: int, cam: PinholeCamera, s: Surfaces, lights: wp.array
     if hit:
         nf = wp.where(wp.dot(n, d) < 0.0, n, -n)
         p = o + t_surf * d
-        # the surfaces bound the grid: keep a hit a rounding error outside it on the boundary
-        pc = wp.vec3(wp.clamp(p[0], v.lo[0], v.hi[0]), wp.clamp(p[1], v.lo[1], v.hi[1]), wp.clamp(p[2], v.lo[2], v.hi[2]))
         for l in range(lights.shape[0]):  # equation 10
             wi, dist, e = light_incident(lights[l], p)
             cos_l = wp.dot(nf, wi)
             if cos_l > 0.0:
-                tl = transmittance_rgb(volume_lookup(opv, l * cells, v, pc))
+                tl = transmittance_rgb(surface_optical_depth(opv, l * cells, v, p, wi, dist))
                 L += cos_l * wp.cw_mul(tr, wp.cw_mul(brdf_eval(s.material[face], nf, -d, wi), wp.cw_mul(e, tl)))
     else:
         L += wp.cw_mul(tr, background)
@@ -302,10 +382,10 @@ class RBFPropagation(Technique):
         self.uploads = SceneUploads(self, medium=False)  # the EV replaces the media's own buffers
         self.ev = self.opv = self.image = None
         self.volume = None
+        self.launches = 0  # propagation launches of the last propagate stage
 
     def _volume(self) -> Volume:
-        # the volumes span the surfaces, or without surfaces the media (RBFs with their cut-off)
-        lo, hi = scene_bounds(self.scene, media=not self.scene.surfaces)
+        lo, hi = volume_bounds(self.scene)
         n = self.settings["grid"]
         v = Volume()
         v.lo, v.hi, v.n = wp.vec3(*lo), wp.vec3(*hi), wp.vec3i(n, n, n)
@@ -341,29 +421,49 @@ class RBFPropagation(Technique):
         count = len(self.scene.lights) * n**3
         tau = wp.zeros(count, dtype=wp.vec3, device=self.device)
         lights = self.uploads.lights
+        cells, base, shells = self.shell_plan()
+        cells = wp.array(cells, dtype=wp.vec3i, device=self.device)
+        base = wp.array(base, dtype=int, device=self.device)
+        self.launches = 0
         if self.settings["wavefront"]:
-            for shell in range(self._shells()):
-                dev.launch(propagate_optical_depth, count, [self.ev, v, lights, self.settings["rule"], shell, tau, tau],
-                           self.device)
+            for shell in range(shells):
+                dev.launch(propagate_optical_depth, count, [self.ev, v, lights, cells, base, self.settings["rule"], shell,
+                                                            tau, tau], self.device)
+                self.launches += 1
         else:
             other = wp.zeros_like(tau)
             for _ in range(self.settings["iterations"] or 3 * n):
-                dev.launch(propagate_optical_depth, count, [self.ev, v, lights, self.settings["rule"], -1, tau, other],
-                           self.device)
+                dev.launch(propagate_optical_depth, count, [self.ev, v, lights, cells, base, self.settings["rule"], -1,
+                                                            tau, other], self.device)
+                self.launches += 1
                 tau, other = other, tau
         self.opv = tau
 
-    def _shells(self) -> int:
-        """Wavefront steps that reach every cell: the largest Manhattan distance in cells from a
-        light's cell (which may lie outside the grid), or across the grid for directional lights."""
+    def shell_plan(self) -> tuple[np.ndarray, np.ndarray, int]:
+        """The wavefront's plan: per light its cell (clamped to [-1, n] per axis in floating
+        point before any integer, so a light at 1e30 cannot overflow; unused for directional
+        lights), the Manhattan distance of its nearest grid cell (launch k updates the
+        cells at that distance + k) and the launches that reach every cell: the largest
+        (farthest - nearest) + 1 over the lights, at most 3(n - 1) + 1."""
         n = self.settings["grid"]
-        lo, h = np.asarray(self.volume.lo), np.asarray(self.volume.h)
-        far = 3 * (n - 1)
+        lo, h = np.asarray(self.volume.lo, np.float32), np.asarray(self.volume.h, np.float32)
+        cells, base, spread = [], [], [0]
         for light in self.scene.lights:
-            if light.type != "directional":
-                g = np.floor((np.asarray(light.position) - lo) / h).astype(int)
-                far = max(far, int(np.sum(np.maximum(np.abs(g), np.abs(n - 1 - g)))))
-        return far + 1
+            if light.type == "directional":  # offsets from the upwind corner: 0 .. n - 1 on each axis used
+                cells.append((0, 0, 0))
+                base.append(0)
+                spread.append(int(np.sum(np.asarray(light.direction) != 0)) * (n - 1))
+                continue
+            with np.errstate(over="ignore", invalid="ignore"):  # float32 as the kernels: the same cell on a boundary
+                g = np.floor((np.asarray(light.position, np.float32) - lo) / h)
+            g = np.clip(np.nan_to_num(g, nan=-1.0), -1, n).astype(int)
+            near = np.maximum(np.maximum(-g, g - (n - 1)), 0)  # distance to the range 0 .. n - 1 per axis
+            far = np.maximum(np.abs(g), np.abs(n - 1 - g))
+            cells.append(tuple(g))
+            base.append(int(near.sum()))
+            spread.append(int(far.sum() - near.sum()))
+        return (np.asarray(cells, np.int32).reshape(-1, 3), np.asarray(base, np.int32).reshape(-1),
+                max(spread) + 1)
 
     def _march(self):
         scene, u = self.scene, self.uploads
