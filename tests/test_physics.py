@@ -358,3 +358,29 @@ def test_airlight_closed_form_matches_ray_quadrature(device):
                                                    length, wp.vec3(*light), sigma, out], device=device)
     exact = airlight.airlight_exact(np.zeros(3), d, length, light, np.ones(3), sigma, n=8192)
     np.testing.assert_allclose(out.numpy()[:, 0], exact[:, 0], rtol=2e-3, atol=1e-3 * exact[:, 0].max())
+
+
+@pytest.mark.parametrize("kind", ["hg", "cornette_shanks"])
+@pytest.mark.parametrize("g", [0.9, 0.999, 0.9999, -0.999, -0.9999])
+def test_peaked_phase_is_finite_past_the_cosine_range(device, kind, g):
+    """A float32 dot of two unit vectors can land an ulp or two outside [-1, 1]; with
+    |g| -> 1 that once made 1 + g^2 - 2 g cos negative and p NaN. The cosine is clamped in
+    hg_denominator, so just outside the range p is finite, positive, and equal to p at the
+    end point (exactly: the clamp makes the arguments identical)."""
+    ends = np.array([1.0, -1.0], np.float32)
+    out = np.array([np.nextafter(np.float32(1), np.float32(2)), np.float32(1.0000005), np.float32(1.01),
+                    np.nextafter(np.float32(-1), np.float32(-2)), np.float32(-1.0000005), np.float32(-1.01)],
+                   np.float32)
+    ph = make_phase(kind, g)
+    p_end = phase_values(device, ph, None, ends)
+    p_out = phase_values(device, ph, None, out)
+    assert np.all(np.isfinite(p_out)) and np.all(p_out > 0), p_out
+    np.testing.assert_array_equal(p_out[:3], p_end[0])
+    np.testing.assert_array_equal(p_out[3:], p_end[1])
+    # the peak is the closed form at cos = +-1, (1 - g^2) / (4 pi (1 - |g|)^3) for HG; tolerance:
+    # float32 g = 0.9999 makes 1 - g 2e-4 off relatively, 6e-4 once cubed
+    peak = p_end[0] if g > 0 else p_end[1]
+    want = (1 - g * g) / (4 * np.pi * (1 - abs(g)) ** 3)
+    if kind == "cornette_shanks":
+        want *= 3 * 2 / (2 * (2 + g * g))  # 3 (1 + cos^2) / (2 (2 + g^2)) times HG at cos = +-1
+    assert peak == pytest.approx(want, rel=2e-3)

@@ -45,10 +45,19 @@ class Phase:
 
 @wp.func
 def hg_denominator(g: float, cos_theta: float) -> float:
-    """1 + g^2 - 2 g cos, written as a sum of non-negative terms (no cancellation as |g| -> 1)."""
+    """1 + g^2 - 2 g cos, written as a sum of non-negative terms (no cancellation as |g| -> 1).
+
+    cos_theta is clamped to [-1, 1]: a float32 dot of two unit vectors can exceed 1 by an
+    ulp or two, which for |g| -> 1 made the denominator negative (and p NaN). The result is
+    at least 1e-20, below (1 - |g|)^2 >= 3.5e-15 for every float32 |g| < 1, so it changes
+    nothing there and keeps |g| = 1 finite (its numerator is zero)."""
+    c = wp.clamp(cos_theta, -1.0, 1.0)
+    d = float(0.0)
     if g >= 0.0:
-        return (1.0 - g) * (1.0 - g) + 2.0 * g * (1.0 - cos_theta)
-    return (1.0 + g) * (1.0 + g) - 2.0 * g * (1.0 + cos_theta)
+        d = (1.0 - g) * (1.0 - g) + 2.0 * g * (1.0 - c)
+    else:
+        d = (1.0 + g) * (1.0 + g) - 2.0 * g * (1.0 + c)
+    return wp.max(d, 1.0e-20)
 
 
 @wp.func
@@ -60,7 +69,8 @@ def henyey_greenstein(g: float, cos_theta: float) -> float:
 @wp.func
 def cornette_shanks(g: float, cos_theta: float) -> float:
     denom = hg_denominator(g, cos_theta)
-    return (3.0 / (8.0 * PI)) * (1.0 - g) * (1.0 + g) * (1.0 + cos_theta * cos_theta) / (
+    c = wp.clamp(cos_theta, -1.0, 1.0)
+    return (3.0 / (8.0 * PI)) * (1.0 - g) * (1.0 + g) * (1.0 + c * c) / (
         (2.0 + g * g) * denom * wp.sqrt(denom)
     )
 

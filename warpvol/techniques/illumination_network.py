@@ -23,9 +23,13 @@ directions, between particles that see each other along them. Stages:
   not at its centre. With one sample: from the centre through the other spheres, times
   its own sphere's mean self-shadowing (the escape probability
   3/(8 tau^3) [2 tau^2 - 1 + (1 + 2 tau) e^(-2 tau)], tau = sigma_t r).
-* ``emission``: E[vp, i] = alpha a sum_lights p(w_light . w_i) E_light T_light, the
+* ``emission``: E[vp, i] = alpha a sum_lights c_l p(w_light . w_i) E_light T_light, the
   light the segment of vp scatters into direction i. The paper snaps the light to the
   nearest sample direction; we evaluate the phase function at the light's own direction.
+  With ``phase_norm = 1`` (the default) c_l = 1 / ((4 pi / D) sum_i p(w_light . w_i)), so
+  the D directions carry exactly the scattered energy, (4 pi / D) sum_i c_l p = 1; a lobe
+  narrower than the directions' spacing otherwise loses it (between directions) or
+  multiplies it (on one). ``phase_norm = 0``: c_l = 1, the paper's.
 * ``iterate``: the paper's update (section 3.3), ``iterations`` times per frame:
 
       I[p, i] = (1 - alpha) I[vp, i] + E[vp, i] + alpha a (4 pi / D) sum_d I[vp, d] P(w_d, w_i)
@@ -34,7 +38,18 @@ directions, between particles that see each other along them. Stages:
   batched matrix product S = I P over all particles (N D^2 multiply-adds per channel), the
   update a gather from S. The phase matrix is tabulated once (D x D), so any phase function
   works: the scene's ``hg`` is true Henyey-Greenstein, its ``cornette_shanks`` the formula
-  the paper prints (and calls Henyey-Greenstein). The solution is kept between frames: a
+  the paper prints (and calls Henyey-Greenstein). The paper's weights 4 pi / D p(w_d . w_i)
+  (``phase_norm = 0``) conserve energy only while the lobe is wide against the directions'
+  spacing: for HG g = 0.95 at D = 128 the diagonal weight alone, 4 pi / D p(1) =
+  (1 + g) / (D (1 - g)^2), is 6, the iteration's gain far above 1, and it diverges. The
+  default (``phase_norm = 1``) scales the tabulated matrix symmetrically to a doubly
+  stochastic one, P' = diag(x) P diag(x) (symmetric Sinkhorn-Knopp in float64 at set-up):
+  every row sums to 1 (what scatters out of incoming direction d is conserved), every
+  column too (so the scattering gain in the max norm is the albedo, never above it), and
+  P' stays symmetric (reciprocity). As g -> 1 P' tends to the identity, light passing
+  straight on. One iteration is then a map of max-norm gain at most the largest
+  1 - alpha (1 - a) over the links (<= 1), and per scattering event at most the albedo.
+  The solution is kept between frames: a
   moved light warm-starts from the last one (as the paper does; ``warm = 0`` restarts
   from zero). The stage settles once the relative L2 change of an iteration falls below
   ``tolerance`` and then stays cached until its inputs change.
@@ -79,7 +94,10 @@ SETTINGS = {
     "tolerance": Setting(1e-4, 0.0, 1.0, "settle once an iteration changes I by under this (relative L2); 0: never"),
     "warm": Setting(1, 0, 1, "1: start from the previous solution when the lights change; 0: from zero"),
     "half": Setting(0, 0, 1, "1: store I and E as float16, as the paper does"),
-    "phase_norm": Setting(0, 0, 1, "0: the paper's weights 4 pi / D; 1: each column of the phase matrix sums to 1"),
+    "phase_norm": Setting(1, 0, 1, "1: the phase matrix scaled doubly stochastic (rows and columns sum to 1; energy "
+                                   "conserving for any lobe) and each light's emission normalised over the D "
+                                   "directions; 0: the paper's weights 4 pi / D (diverges for peaked lobes, "
+                                   "e.g. HG g >= 0.9 at D = 128)"),
     "light_samples": Setting(4, 1, 1024, "points of a sphere whose transmittance to a light is averaged (1: centre)"),
     "splat_steps": Setting(0, 0, 4096, "0: splat spheres sorted by depth; S: march S steps through overlapping ones"),
     "refresh": Setting(0, 0, 4096, "when the medium changes, re-peel this many directions (round robin; 0: all)"),
@@ -248,18 +266,37 @@ def phase_toward(ph: Phase, table: wp.array(dtype=float), w_in: wp.vec3, w_out: 
 
 
 @wp.kernel
+def light_weights(offset: int, dirs: wp.array(dtype=wp.vec3), travel: wp.array(dtype=wp.vec3), ph: Phase,
+                  table: wp.array(dtype=float), normalise: int, out: wp.array(dtype=float)):
+    """Thread p L + l: c = 1 / ((4 pi / D) sum_i p(w_l . w_i)) with ``normalise`` (the D
+    directions then carry exactly what the particle scatters of light l), else 1."""
+    tid = wp.tid() + offset
+    D = dirs.shape[0]
+    c = float(1.0)
+    if normalise != 0:
+        total = float(0.0)
+        for i in range(D):
+            total += phase_toward(ph, table, travel[tid], dirs[i])
+        if total > 0.0:
+            c = float(D) / (4.0 * PI * total)
+    out[tid] = c
+
+
+@wp.kernel
 def emission_network(offset: int, dirs: wp.array(dtype=wp.vec3), direct: wp.array(dtype=wp.vec3),
-                     travel: wp.array(dtype=wp.vec3), n_lights: int, albedo: wp.array(dtype=wp.vec3),
-                     alpha: wp.array(dtype=wp.vec3), ph: Phase, table: wp.array(dtype=float), inv_scale: float,
-                     E: wp.array2d(dtype=Any)):
-    """E[vp, i] = alpha a sum_l p(w_l . w_i) E_l T_l, channel c of vp in row 3 vp + c."""
+                     travel: wp.array(dtype=wp.vec3), weight: wp.array(dtype=float), n_lights: int,
+                     albedo: wp.array(dtype=wp.vec3), alpha: wp.array(dtype=wp.vec3), ph: Phase,
+                     table: wp.array(dtype=float), inv_scale: float, E: wp.array2d(dtype=Any)):
+    """E[vp, i] = alpha a sum_l c_l p(w_l . w_i) E_l T_l, channel c of vp in row 3 vp + c
+    (c_l from ``light_weights``)."""
     tid = wp.tid() + offset
     D = dirs.shape[0]
     p = tid / D
     i = tid % D
     s = wp.vec3(0.0)
     for l in range(n_lights):
-        s += phase_toward(ph, table, travel[p * n_lights + l], dirs[i]) * direct[p * n_lights + l]
+        k = p * n_lights + l
+        s += (weight[k] * phase_toward(ph, table, travel[k], dirs[i])) * direct[k]
     e = wp.cw_mul(wp.cw_mul(alpha[tid], albedo[p]), s) * inv_scale
     for c in range(3):
         E[3 * p + c, i] = E.dtype(e[c])
@@ -543,6 +580,26 @@ def window_rule(directions: int, radius: float, tau: float) -> int:
     return max(1, int(np.floor(np.sqrt(directions * (radius * tau) ** 2 / np.pi))))
 
 
+def doubly_stochastic(P: np.ndarray, tol: float = 1e-9, max_iter: int = 10000) -> np.ndarray:
+    """diag(x) P diag(x) for a symmetric non-negative P (float64): every row and column sums
+    to 1. Symmetric Sinkhorn-Knopp, x <- x / sqrt(row sums), from x = 1 / sqrt(P 1), to a
+    largest row-sum error of ``tol`` (or ``max_iter`` steps: a matrix without total support
+    may not converge). The result is then divided by its largest row or column sum, so the
+    sums are <= 1 whatever happened (the iteration's gain bound), and symmetrised."""
+    P = np.asarray(P, np.float64)
+    sums = P.sum(1)
+    x = 1.0 / np.sqrt(np.where(sums > 0, sums, 1.0))
+    for _ in range(max_iter):
+        r = x * (P @ x)
+        if np.abs(r[sums > 0] - 1.0).max(initial=0.0) < tol:
+            break
+        x = x / np.sqrt(np.where(r > 0, r, 1.0))
+    B = x[:, None] * P * x[None, :]
+    B = 0.5 * (B + B.T)
+    top = max(B.sum(0).max(initial=0.0), B.sum(1).max(initial=0.0))
+    return B / top if top > 0 else B
+
+
 def _pad(n: int, k: int) -> int:
     return -(-n // k) * k
 
@@ -583,7 +640,7 @@ class IlluminationNetwork(Technique):
                   settings=("directions", "window", "half", "phase_norm", "refresh")),
             Stage("direct", self._direct, reads=("lights",), settings=("light_samples",), after=("network", "lights"),
                   needed=lights),
-            Stage("emission", self._emission, after=("network", "direct"), settings=("half",)),
+            Stage("emission", self._emission, after=("network", "direct"), settings=("half", "phase_norm")),
             Stage("iterate", self._iterate, reads=("background",), settings=("iterations", "tolerance", "warm"),
                   after=("network", "emission"), settled=self.converged),
             Stage("splat", self._splat, reads=("camera", "background"), settings=("splat_steps",),
@@ -658,7 +715,8 @@ class IlluminationNetwork(Technique):
         self.converged = False
 
     def _phase_matrix(self):
-        """P[d, i] = weight p(w_d . w_i), blocked 16 columns to a vector (padding zero)."""
+        """P[d, i] = weight p(w_d . w_i), blocked 16 columns to a vector (padding zero):
+        the paper's weight 4 pi / D, or (``phase_norm``) the doubly stochastic scaling."""
         medium = self.scene.media[0]
         self.phase, table = phase_struct(medium.phase)
         self.table = wp.array(table if len(table) else np.zeros(1, np.float32), dtype=float, device=self.device)
@@ -668,8 +726,7 @@ class IlluminationNetwork(Technique):
         P = flat.numpy().reshape(Dp, Dp).astype(np.float64)
         self.p_max = float(P.max())
         if self.settings["phase_norm"]:
-            sums = P[:D, :D].sum(0)
-            P[:D, :D] /= np.where(sums > 0, sums, 1.0)
+            P[:D, :D] = doubly_stochastic(P[:D, :D])
         else:
             P *= 4.0 * np.pi / D
         self.P = wp.array(P.astype(np.float32).reshape(Dp, Dp // 16, 16), dtype=vec16, device=self.device)
@@ -696,19 +753,27 @@ class IlluminationNetwork(Technique):
             self.scale = scale
         self.E.zero_()
         if n:
-            dev.launch(emission_network, n * D, [self.dirs, self.direct, self.travel, L, self.albedo, self.alpha,
-                                                 self.phase, self.table, 1.0 / self.scale, self.E], self.device)
+            self.light_weight = wp.empty(max(n * L, 1), dtype=float, device=self.device)
+            if L:
+                dev.launch(light_weights, n * L, [self.dirs, self.travel, self.phase, self.table,
+                                                  self.settings["phase_norm"], self.light_weight], self.device,
+                           min_split=256)
+            dev.launch(emission_network, n * D, [self.dirs, self.direct, self.travel, self.light_weight, L,
+                                                 self.albedo, self.alpha, self.phase, self.table, 1.0 / self.scale,
+                                                 self.E], self.device)
         if not self.settings["warm"]:
             self.I.zero_()
             self.history = []
         self.converged = False
 
     def _emission_bound(self) -> float:
-        """An upper bound of E: lights x the largest direct irradiance x the largest phase value
-        (alpha and the albedo are at most 1)."""
+        """An upper bound of E: lights x the largest direct irradiance x the largest weighted
+        phase value (alpha and the albedo are at most 1); normalised, c_l p <= D / (4 pi)
+        (one term of a sum that is D / (4 pi))."""
         if not self.scene.lights or not self._n:
             return 0.0
-        return len(self.scene.lights) * float(self.direct.numpy().max()) * max(self.p_max, float(INV_4PI))
+        w = self.D / (4.0 * np.pi) if self.settings["phase_norm"] else max(self.p_max, float(INV_4PI))
+        return len(self.scene.lights) * float(self.direct.numpy().max()) * w
 
     def _iterate(self):
         s = self.settings
