@@ -7,6 +7,7 @@ import pytest
 
 import warpvol as wv
 from warpvol.metrics import relative_rmse
+from warpvol.scene import SceneError
 from warpvol.scene.procedural import rbf_cornell
 
 
@@ -55,11 +56,10 @@ def test_injection_is_the_rbf_sum_at_cell_centres(device, centers, radius):
     np.testing.assert_allclose(a["extinction"][..., 0].ravel(), expected, rtol=1e-5, atol=1e-6)
 
 
-def test_zero_rbfs_is_surfaces_only():
-    r = renderer(box_scene([rbf(np.zeros((0, 3)))], [POINT]))
-    assert not r.arrays()["extinction"].any()
-    img = r.render().image
-    assert np.isfinite(img).all() and img.mean() > 0
+def test_zero_rbfs_is_refused():
+    """DESIGN.md: empty media are an error, named before any kernel runs."""
+    with pytest.raises(SceneError, match=r"media\[0\]\.centers: has no centres"):
+        renderer(box_scene([rbf(np.zeros((0, 3)))], [POINT]))
 
 
 def test_corrected_rule_is_exact_along_an_axis():

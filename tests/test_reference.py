@@ -146,8 +146,14 @@ HARD = {
     "single-cell-grid": ({"type": "grid", "density": np.full((1, 1, 1), 1.0, np.float32), "bounds_min": [-1, -1, -1],
                           "bounds_max": [1, 1, 1], "sigma_t_scale": 0.5, "albedo": 0.5}, None),
     "one-particle": ({"type": "particles", "positions": [[0, 0, 0]], "radius": 0.5, "sigma_t": 3.0, "albedo": 0.9}, None),
-    "no-particles": ({"type": "particles", "positions": [], "radius": 0.5, "sigma_t": 3.0, "albedo": 0.9}, 1.0),
     "albedo-one-thick": ({"type": "homogeneous", "shape": "sphere", "radius": 1, "sigma_t": 200.0, "albedo": 1.0}, None),
+    "clear-particle": ({"type": "particles", "positions": [[0, 0, 0]], "radius": 0.5, "sigma_t": 0.0, "albedo": 0.9}, 1.0),
+    # sigma_t = 1e6 in particle and RBF media (issue 12: these hung, a collision per 1e-6 units):
+    # free flight is exact per sphere / Gaussian, so they cost what their surface costs
+    "dense-particles": ({"type": "particles", "positions": [[0, 0, 0], [0.3, 0.1, 0]], "radius": 0.5,
+                         "sigma_t": 1.0e6, "albedo": 0.9}, 0.0),
+    "dense-rbf": ({"type": "rbf", "centers": [[0, 0, 0], [0.2, 0, 0.1]], "radius": 0.25, "peak": 1.0e6,
+                   "albedo": 0.99}, 0.0),
 }
 
 

@@ -13,7 +13,7 @@ import warp as wp
 from .geometry.mesh import Surfaces, occluded
 from .media.volume import Media, homogeneous_optical_depth, ray_box, sigma_t_at, transmittance_estimate
 from .physics.brdf import Material, brdf_eval
-from .physics.constants import RAY_EPS
+from .physics.constants import RAY_EPS, STREAM
 from .physics.lights import KINDS, Light, light_incident
 from .physics.transmittance import transmittance_rgb
 
@@ -55,7 +55,7 @@ def surface_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), p: wp.v
         wi, dist, e = light_incident(lights[l], p)
         cos_l = wp.dot(n, wi)
         if cos_l > 0.0 and (e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0):
-            tr = light_transmittance(m, s, start, wi, dist, c, wp.rand_init(wp.randi(rng)), march_steps)
+            tr = light_transmittance(m, s, start, wi, dist, c, wp.rand_init(wp.randi(rng), STREAM), march_steps)
             L += cos_l * wp.cw_mul(wp.cw_mul(brdf_eval(mat, n, wo, wi), e), tr)
     return L
 

@@ -3,7 +3,18 @@
 sigma_t(x) = sum_m density_m(x) * sigma_m, where density_m is 1 inside a homogeneous
 shape, the trilinear grid value, the RBF sum, or the particle overlap count, and sigma_m
 is the medium's RGB scale (sigma_t, sigma_t_scale, peak). Majorants are rigorous bounds
-(see grid.py, rbf.py, particles.py), summed over media.
+(see grid.py, rbf.py, particles.py), per medium and summed over media.
+
+Free flight and transmittance treat sigma_t as the sum it is. Each homogeneous shape, each
+particle sphere and each RBF Gaussian is a component whose optical depth along a ray has a
+closed form (a chord length; an erf), and collisions of a sum of media are the union of
+independent Poisson processes: the first collision is the earliest of the components' own
+first collisions (``free_flight``), and the transmittance is the product of theirs
+(``transmittance_estimate``). Spheres and Gaussians on a ray are found through a ``wp.Bvh``
+over their boxes. Only grids are tracked (delta / ratio tracking against their own
+majorant, within their own bounds). A dense medium therefore costs what its surface costs:
+with sigma_t = 1e6 a path stops at the first sphere it enters, not after 1e6 null
+collisions per unit.
 """
 
 from __future__ import annotations
@@ -11,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from ..physics.constants import INF
+from ..physics.constants import INF, SQRT2, SQRT_HALF_PI
 from ..physics.phase import Phase, phase_eval, phase_struct
 from ..physics.transmittance import transmittance_rgb
 from ..scene.model import GridMedium, HomogeneousMedium, ParticleMedium, RBFMedium, Scene
@@ -49,6 +60,8 @@ class Media:
     het_max: wp.vec3
     majorant: wp.vec3  # bound of sigma_t over all media
     het_majorant: wp.vec3  # bound of sigma_t over heterogeneous media
+    medium_majorant: wp.array(dtype=wp.vec3)  # bound of sigma_t of each medium alone
+    bvh: wp.array(dtype=wp.uint64)  # RBF / particle media: a BVH over the spheres' boxes (0: none)
 
 
 @wp.func
@@ -126,25 +139,6 @@ def in_scatter_at(m: Media, x: wp.vec3, cos_theta: float) -> wp.vec3:
 
 
 @wp.func
-def choose_medium(m: Media, x: wp.vec3, c: int, u: float) -> int:
-    """Pick the medium that caused a collision at x, in proportion to its sigma_t in channel c."""
-    total = float(0.0)
-    for i in range(m.count):
-        total += medium_density(m, i, x) * m.sigma[i][c]
-    target = u * total
-    acc = float(0.0)
-    last = int(0)
-    for i in range(m.count):
-        w = medium_density(m, i, x) * m.sigma[i][c]
-        if w > 0.0:
-            last = i
-            acc += w
-            if acc >= target:
-                return i
-    return last
-
-
-@wp.func
 def inside_convex(m: Media, i: int, x: wp.vec3) -> bool:
     """Whether x lies in homogeneous medium i (a box or a sphere)."""
     if m.kind[i] == SPHERE:
@@ -181,26 +175,150 @@ def homogeneous_optical_depth(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: f
 
 @wp.func
 def transmittance_estimate(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: float, c: int, rng: wp.uint32) -> wp.vec3:
-    """Unbiased estimate of exp(-integral sigma_t) over [t0, t1]: exact for homogeneous media,
-    ratio tracking (Novak et al. 2014) with Russian roulette for heterogeneous ones."""
-    tr = transmittance_rgb(homogeneous_optical_depth(m, o, d, t0, t1))
-    mu = m.het_majorant[c]
-    if mu <= 0.0:
-        return tr
-    a, b = ray_box(o, d, m.het_min, m.het_max)
-    t = wp.max(a, t0)
-    t_end = wp.min(b, t1)
+    """Unbiased estimate of exp(-integral sigma_t) over [t0, t1] (d unit): exact for every
+    medium with a closed form (``exact_optical_depth``), times ratio tracking (Novak et al.
+    2014) with Russian roulette through each grid against its own majorant."""
+    tr = transmittance_rgb(exact_optical_depth(m, o, d, t0, t1))
     w = float(1.0)
-    while t < t_end:
-        t = t - wp.log(1.0 - wp.randf(rng)) / mu
-        if t >= t_end:
-            break
-        w *= 1.0 - sigma_t_at(m, o + t * d, True)[c] / mu
-        if w < 0.1:  # Russian roulette keeps long thick segments short, unbiased
-            if wp.randf(rng) < 0.5:
-                return wp.vec3(0.0)
-            w *= 2.0
+    for i in range(m.count):
+        if m.kind[i] == GRID and w > 0.0:
+            mu = m.medium_majorant[i][c]
+            sig = m.sigma[i][c]
+            a, b = ray_box(o, d, m.bmin[i], m.bmax[i])
+            t = wp.max(a, t0)
+            t_end = wp.min(b, t1)
+            while t < t_end and mu > 0.0:
+                t = t + (-wp.log(1.0 - wp.randf(rng))) / mu
+                if t >= t_end:
+                    break
+                w *= 1.0 - medium_density(m, i, o + t * d) * sig / mu
+                if w < 0.1:  # Russian roulette keeps long thick segments short, unbiased
+                    if wp.randf(rng) < 0.5:
+                        w = 0.0
+                        break
+                    w *= 2.0
     return tr * w
+
+
+@wp.func
+def gaussian_on_ray(o: wp.vec3, d: wp.vec3, c: wp.vec3, radius: float):
+    """A cut-off Gaussian RBF on the ray o + t d (unit d): (t at its closest point, its
+    density factor there, the half chord of its cut-off sphere; 0 when the ray misses)."""
+    oc = c - o
+    tc = wp.dot(oc, d)
+    h2 = wp.max(wp.dot(oc, oc) - tc * tc, 0.0)
+    r_cut = CUTOFF * radius
+    s2 = r_cut * r_cut - h2
+    if s2 <= 0.0:
+        return tc, 0.0, 0.0
+    return tc, wp.exp(-0.5 * h2 / (radius * radius)), wp.sqrt(s2)
+
+
+@wp.func
+def gaussian_erf(t: float, tc: float, radius: float) -> wp.float64:
+    """erf((t - tc) / (sqrt(2) radius)) in float64: differences of it lose nothing in the tails."""
+    return wp.erf(wp.float64(t - tc) / (wp.float64(SQRT2) * wp.float64(radius)))
+
+
+@wp.func
+def exact_optical_depth(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: float) -> wp.vec3:
+    """Optical depth over [t0, t1] (d unit) of every medium with a closed form: homogeneous
+    shapes (slab / sphere), particles (sigma_t times chord lengths; overlaps add) and RBFs
+    (peak exp(-h^2 / 2r^2) r sqrt(pi / 2) times an erf difference per Gaussian)."""
+    tau = homogeneous_optical_depth(m, o, d, t0, t1)
+    for i in range(m.count):
+        kind = m.kind[i]
+        if kind == PARTICLES or kind == RBF:
+            r = m.radius[i]
+            acc = float(0.0)
+            query = wp.bvh_query_ray(m.bvh[i], o, d)
+            k = int(0)
+            while wp.bvh_query_next(query, k, t1):
+                c = m.points[m.offset[i] + k]
+                if kind == PARTICLES:
+                    a, b = ray_sphere(o, d, c, r)
+                    acc += wp.max(wp.min(b, t1) - wp.max(a, t0), 0.0)
+                else:
+                    tc, g, s = gaussian_on_ray(o, d, c, r)
+                    a = wp.max(tc - s, t0)
+                    b = wp.min(tc + s, t1)
+                    if a < b:
+                        mass = gaussian_erf(b, tc, r) - gaussian_erf(a, tc, r)
+                        acc += g * r * SQRT_HALF_PI * float(mass)
+            tau += acc * m.sigma[i]
+    return tau
+
+
+@wp.func
+def free_flight(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: float, c: int, rng: wp.uint32):
+    """The first real collision on [t0, t1) along o + t d (d unit) in channel c: (t, medium),
+    or (t1, -1) when there is none. The earliest of the components' own first collisions,
+    each sampled exactly (homogeneous shapes, particle spheres, RBF Gaussians by inverting
+    the erf) or by delta tracking (grids); the medium returned is the component's, which is
+    the one a collision at t belongs to with probability sigma_i(t) / sigma_t(t)."""
+    best = float(t1)
+    who = int(-1)
+    for i in range(m.count):
+        kind = m.kind[i]
+        sig = m.sigma[i][c]
+        if sig > 0.0:
+            if kind == BOX or kind == SPHERE:
+                a = float(0.0)
+                b = float(0.0)
+                if kind == BOX:
+                    a, b = ray_box(o, d, m.bmin[i], m.bmax[i])
+                else:
+                    a, b = ray_sphere(o, d, m.center[i], m.radius[i])
+                a = wp.max(a, t0)
+                b = wp.min(b, best)
+                if a < b:
+                    t = a + (-wp.log(1.0 - wp.randf(rng))) / sig
+                    if t < b:
+                        best = t
+                        who = i
+            elif kind == GRID:
+                mu = m.medium_majorant[i][c]
+                a, b = ray_box(o, d, m.bmin[i], m.bmax[i])
+                t = wp.max(a, t0)
+                b = wp.min(b, best)
+                while t < b and mu > 0.0:
+                    t = t + (-wp.log(1.0 - wp.randf(rng))) / mu
+                    if t >= b:
+                        break
+                    if wp.randf(rng) * mu < medium_density(m, i, o + t * d) * sig:
+                        best = t
+                        who = i
+                        break
+            else:
+                r = m.radius[i]
+                query = wp.bvh_query_ray(m.bvh[i], o, d)
+                k = int(0)
+                while wp.bvh_query_next(query, k, best):
+                    ctr = m.points[m.offset[i] + k]
+                    if kind == PARTICLES:
+                        a, b = ray_sphere(o, d, ctr, r)
+                        a = wp.max(a, t0)
+                        b = wp.min(b, best)
+                        if a < b:
+                            t = a + (-wp.log(1.0 - wp.randf(rng))) / sig
+                            if t < b:
+                                best = t
+                                who = i
+                    else:
+                        tc, g, s = gaussian_on_ray(o, d, ctr, r)
+                        a = wp.max(tc - s, t0)
+                        b = wp.min(tc + s, best)
+                        if a < b:
+                            # optical depth from a to t: K (erf(z_t) - erf(z_a)), K = sig g r sqrt(pi / 2)
+                            K = wp.float64(sig * g * r * SQRT_HALF_PI)
+                            ea = gaussian_erf(a, tc, r)
+                            e = wp.float64((-wp.log(1.0 - wp.randf(rng))))
+                            if e < K * (gaussian_erf(b, tc, r) - ea):
+                                z = wp.erfinv(ea + e / K)
+                                t = tc + SQRT2 * r * wp.float32(z)
+                                best = wp.clamp(t, a, b)
+                                who = i
+    return best, who
 
 
 def medium_bounds(m) -> tuple[np.ndarray, np.ndarray] | None:
@@ -301,6 +419,20 @@ class MediaBuffers:
             self.hash_grids.append(hg)
             ids[i] = hg.id
         s.hash_grid = wp.array(ids, dtype=wp.uint64, device=device)
+        # a BVH over each RBF / particle medium's spheres (cut-off spheres for RBFs): rays find
+        # the components they cross for exact optical depth and free flight
+        self.bvhs = []
+        bvh_ids = np.zeros(max(count, 1), np.uint64)
+        for i, first, n, reach in point_media:
+            if n == 0:
+                continue
+            pts = pts_all[first : first + n]
+            bvh = wp.Bvh(wp.array(pts - reach, dtype=wp.vec3, device=device),
+                         wp.array(pts + reach, dtype=wp.vec3, device=device))
+            self.bvhs.append(bvh)
+            bvh_ids[i] = bvh.id
+        s.bvh = wp.array(bvh_ids, dtype=wp.uint64, device=device)
+        s.medium_majorant = f3([tuple(np.asarray(mj, np.float64) * np.ones(3)) for mj in majorants])
         het = [k >= int(GRID) for k in kinds]
         s.all_min, s.all_max = _union(bmin, bmax, [True] * count)
         s.het_min, s.het_max = _union(bmin, bmax, het)

@@ -2,26 +2,27 @@
 
 Per camera sample it follows a path through media and off surfaces:
 
-* Distance sampling by delta tracking (Woodcock et al. 1965) against a rigorous global
-  majorant; with one homogeneous box this is closed-form exponential sampling.
+* Distance sampling by superposition: the first collision is the earliest of each medium
+  component's own, sampled exactly for homogeneous shapes, particle spheres and RBF
+  Gaussians and by delta tracking (Woodcock et al. 1965) in grids (``media/volume.py``).
 * In-scattered direct light along every segment by next-event estimation to every light,
   combining two samples with the power heuristic (Veach 1997): equiangular sampling toward
   a point or spot light (Kulla & Fajardo 2012), whose pdf cancels the 1/d^2 of a light
   inside the medium, and exponential sampling of the majorant. Transmittance toward the
-  camera and the light is exact in homogeneous media and ratio-tracked (Novak et al.
-  2014) in heterogeneous ones; surfaces occlude through a ``wp.Mesh`` query. A directional
+  camera and the light is exact in homogeneous, particle and RBF media and ratio-tracked
+  (Novak et al. 2014) in grids; surfaces occlude through a ``wp.Mesh`` query. A directional
   light has no equiangular strategy; its sample is the segment's first real collision
   found by delta tracking, whose weight stays bounded however loose the majorant is.
 * Lambertian + normalised Phong surfaces with direct light and cosine-sampled bounces;
   escaping rays see the background.
 * ``max_bounces`` counts scattering events (volume or surface): 1 is single scattering,
-  -1 unlimited (Russian roulette after 5 events). Mitsuba's max_depth is one more.
+  -1 unlimited (Russian roulette after 5 events, survival at most 0.995 an event). Mitsuba's max_depth is one more.
 
 If extinction differs between R, G and B, each channel is traced on its own (three
 launches), so distance sampling stays exact per channel. Per-pixel sums go to float64.
 
 A ``@wp.func`` receives the RNG state by value: its draws do not advance the caller's
-state. Every call that draws therefore gets a fresh stream, ``wp.rand_init(wp.randi(rng))``,
+state. Every call that draws therefore gets a fresh stream, ``wp.rand_init(wp.randi(rng), STREAM)``,
 drawn inline by the caller, so no two estimates share random numbers (a product of two
 correlated transmittance estimates would be biased).
 """
@@ -35,11 +36,11 @@ from tqdm import tqdm
 from .. import device as dev
 from ..geometry.camera import PinholeCamera, camera_ray, pinhole
 from ..geometry.mesh import Surfaces, surface_hit
-from ..media.volume import Media, choose_medium, in_scatter_at, ray_box, sigma_t_at, transmittance_estimate
+from ..media.volume import Media, free_flight, in_scatter_at, ray_box, transmittance_estimate
 from ..physics.brdf import brdf_eval
-from ..physics.constants import INF, PI, RAY_EPS, TWO_PI
+from ..physics.constants import INF, PI, RAY_EPS, STREAM, TWO_PI
 from ..physics.lights import DIRECTIONAL, Light, light_incident
-from ..physics.phase import orthonormal_basis, phase_sample
+from ..physics.phase import orthonormal_basis, phase_eval, phase_sample
 from ..pipeline import Setting, Stage, Technique
 from ..shading import light_transmittance, surface_direct
 from ..upload import SceneUploads
@@ -73,10 +74,10 @@ def scatter_sample(m: Media, s: Surfaces, light: Light, o: wp.vec3, d: wp.vec3, 
     fs = in_scatter_at(m, x, wp.dot(d, wi))
     if fs[0] <= 0.0 and fs[1] <= 0.0 and fs[2] <= 0.0:
         return wp.vec3(0.0)
-    tl = light_transmittance(m, s, x, wi, dist, c, wp.rand_init(wp.randi(rng)), 0)
+    tl = light_transmittance(m, s, x, wi, dist, c, wp.rand_init(wp.randi(rng), STREAM), 0)
     if tl[0] <= 0.0 and tl[1] <= 0.0 and tl[2] <= 0.0:
         return wp.vec3(0.0)
-    tc = transmittance_estimate(m, o, d, ta, t, c, wp.rand_init(wp.randi(rng)))
+    tc = transmittance_estimate(m, o, d, ta, t, c, wp.rand_init(wp.randi(rng), STREAM))
     return wp.cw_mul(wp.cw_mul(fs, e), wp.cw_mul(tl, tc))
 
 
@@ -104,25 +105,20 @@ def segment_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), o: wp.v
                 pdf_e = h / ((th_b - th_a) * (h * h + (t - delta) * (t - delta)))
                 pdf_m = mu * wp.exp(-mu * (t - ta))
                 w = pdf_e * pdf_e / (pdf_e * pdf_e + pdf_m * pdf_m)
-                L += scatter_sample(m, s, light, o, d, ta, t, c, wp.rand_init(wp.randi(rng))) * (w / pdf_e)
+                L += scatter_sample(m, s, light, o, d, ta, t, c, wp.rand_init(wp.randi(rng), STREAM)) * (w / pdf_e)
         if mu > 0.0 and not point_like:
             # a directional light has no equiangular strategy to share the segment with, and
             # majorant sampling alone weighs a sample by e^(mu t): unbounded where a loose
-            # majorant meets sparse media (particle clouds). Delta tracking to a real
-            # collision has pdf sigma_t T, so its estimate is sigma_s p E T_l / sigma_t.
-            t = ta
-            while True:
-                t = t - wp.log(1.0 - wp.randf(rng)) / mu
-                if t >= tb:
-                    break
+            # majorant meets sparse media (particle clouds). The segment's first real
+            # collision has pdf sigma_t T; choosing the medium i it belongs to with
+            # probability sigma_i / sigma_t leaves the estimate albedo_i p_i E T_l.
+            t, i = free_flight(m, o, d, ta, tb, c, wp.rand_init(wp.randi(rng), STREAM))
+            if i >= 0:
                 x = o + t * d
-                sig = sigma_t_at(m, x, False)[c]
-                if wp.randf(rng) * mu < sig:
-                    wi, dist, e = light_incident(light, x)
-                    fs = in_scatter_at(m, x, wp.dot(d, wi)) / sig
-                    tl = light_transmittance(m, s, x, wi, dist, c, wp.rand_init(wp.randi(rng)), 0)
-                    L += wp.cw_mul(wp.cw_mul(fs, e), tl)
-                    break
+                wi, dist, e = light_incident(light, x)
+                fs = m.albedo[i] * phase_eval(m.phase[i], m.phase_table, wp.dot(d, wi))
+                tl = light_transmittance(m, s, x, wi, dist, c, wp.rand_init(wp.randi(rng), STREAM), 0)
+                L += wp.cw_mul(wp.cw_mul(fs, e), tl)
         elif mu > 0.0:
             t = ta - wp.log(1.0 - wp.randf(rng)) / mu
             if t < tb:
@@ -132,7 +128,7 @@ def segment_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), o: wp.v
                     pdf_e = h / ((th_b - th_a) * (h * h + (t - delta) * (t - delta)))
                 if pdf_m > 0.0:
                     w = pdf_m * pdf_m / (pdf_e * pdf_e + pdf_m * pdf_m)
-                    L += scatter_sample(m, s, light, o, d, ta, t, c, wp.rand_init(wp.randi(rng))) * (w / pdf_m)
+                    L += scatter_sample(m, s, light, o, d, ta, t, c, wp.rand_init(wp.randi(rng), STREAM)) * (w / pdf_m)
     return L
 
 
@@ -158,24 +154,19 @@ def trace_path(cam: PinholeCamera, m: Media, s: Surfaces, lights: wp.array(dtype
         tb = wp.min(b, t_surf)
         in_media = ta < tb and mu > 0.0
         if in_media:
-            L += wp.cw_mul(beta, segment_direct(m, s, lights, o, d, ta, tb, c, wp.rand_init(wp.randi(rng))))
-        # delta tracking to the next real collision
+            L += wp.cw_mul(beta, segment_direct(m, s, lights, o, d, ta, tb, c, wp.rand_init(wp.randi(rng), STREAM)))
+        # the next real collision: the earliest of the media components' own (exact or tracked)
         collided = bool(False)
         t = ta
+        i = int(-1)
         if in_media:
-            while True:
-                t = t - wp.log(1.0 - wp.randf(rng)) / mu
-                if t >= tb:
-                    break
-                if wp.randf(rng) * mu < sigma_t_at(m, o + t * d, False)[c]:
-                    collided = True
-                    break
+            t, i = free_flight(m, o, d, ta, tb, c, wp.rand_init(wp.randi(rng), STREAM))
+            collided = i >= 0
         if collided:
             events += 1
             if events >= st.max_events:
                 break
             x = o + t * d
-            i = choose_medium(m, x, c, wp.randf(rng))
             u1 = wp.randf(rng)
             u2 = wp.randf(rng)
             wi, weight, pdf = phase_sample(m.phase[i], m.phase_table, d, u1, u2)
@@ -187,7 +178,7 @@ def trace_path(cam: PinholeCamera, m: Media, s: Surfaces, lights: wp.array(dtype
             p = o + t_surf * d
             nf = wp.where(wp.dot(n, d) < 0.0, n, -n)
             mat = s.material[face]
-            L += wp.cw_mul(beta, surface_direct(m, s, lights, p, nf, -d, mat, c, wp.rand_init(wp.randi(rng)), 0))
+            L += wp.cw_mul(beta, surface_direct(m, s, lights, p, nf, -d, mat, c, wp.rand_init(wp.randi(rng), STREAM), 0))
             if events >= st.max_events:
                 break
             # cosine-weighted bounce: weight f cos / pdf = pi f
@@ -202,7 +193,11 @@ def trace_path(cam: PinholeCamera, m: Media, s: Surfaces, lights: wp.array(dtype
             L += wp.cw_mul(beta, background)
             break
         if events > 5:
-            q = wp.min(wp.max(beta[0], wp.max(beta[1], beta[2])), 0.95)
+            # survive in proportion to the throughput, but at most 0.995 per event: a path
+            # in a bright, dense medium (albedo -> 1) still ends after about 200 more events,
+            # while its weight grows by 1/0.995 per event, not 1/0.95 (a cap of 0.95 made
+            # the furnace's rare long paths carry weights of 100 and more: heavy tails)
+            q = wp.min(wp.max(beta[0], wp.max(beta[1], beta[2])), 0.995)
             if wp.randf(rng) >= q:
                 break
             beta = beta / q
@@ -222,7 +217,7 @@ def trace_paths(offset: int, cam: PinholeCamera, m: Media, s: Surfaces, lights: 
     rng = wp.rand_init(st.seed, tid)
     total = wp.vec3(0.0)
     for k in range(st.spp):
-        total += trace_path(cam, m, s, lights, background, st, px, py, wp.rand_init(wp.randi(rng)))
+        total += trace_path(cam, m, s, lights, background, st, px, py, wp.rand_init(wp.randi(rng), STREAM))
     accum[tid] = accum[tid] + wp.vec3d(wp.float64(total[0]), wp.float64(total[1]), wp.float64(total[2]))
 
 
