@@ -14,10 +14,10 @@ _wp.config.quiet = True  # before any struct or kernel initialises Warp
 
 from .api import Renderer, render, technique_names  # noqa: E402
 from .image import load_image, save_image  # noqa: E402
-from .media.volume import extinction_volume  # noqa: E402
 from .metrics import relative_rmse  # noqa: E402
 from .pipeline import Frame, SettingsError  # noqa: E402
 from .scene import Scene, SceneError, load_scene  # noqa: E402
+from .upload import extinction_volume  # noqa: E402
 
 __version__ = "0.1.0"
 

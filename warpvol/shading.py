@@ -6,15 +6,13 @@ homogeneous media, ratio tracking for heterogeneous ones) or marched determinist
 with ``march_steps`` midpoint steps over the heterogeneous part (homogeneous media exact).
 """
 
-import math
-
 import warp as wp
 
 from .geometry.mesh import Surfaces, occluded
 from .media.volume import Media, homogeneous_optical_depth, ray_box, sigma_t_at, transmittance_estimate
 from .physics.brdf import Material, brdf_eval
 from .physics.constants import RAY_EPS, STREAM
-from .physics.lights import KINDS, Light, light_incident
+from .physics.lights import Light, light_incident
 from .physics.transmittance import transmittance_rgb
 
 
@@ -58,18 +56,3 @@ def surface_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), p: wp.v
             tr = light_transmittance(m, s, start, wi, dist, c, wp.rand_init(wp.randi(rng), STREAM), march_steps)
             L += cos_l * wp.cw_mul(wp.cw_mul(brdf_eval(mat, n, wo, wi), e), tr)
     return L
-
-
-def light_array(scene, device) -> wp.array:
-    """The scene's lights as an array of ``Light`` structs."""
-    out = []
-    for light in scene.lights:
-        s = Light()
-        s.kind = KINDS[light.type]
-        s.position = wp.vec3(*light.position)
-        s.direction = wp.vec3(*light.direction)
-        s.strength = wp.vec3(*light.strength)
-        s.cos_inner = math.cos(math.radians(light.inner_angle))
-        s.cos_outer = math.cos(math.radians(light.outer_angle))
-        out.append(s)
-    return wp.array(out, dtype=Light, device=device) if out else wp.empty(0, dtype=Light, device=device)

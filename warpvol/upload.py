@@ -1,4 +1,11 @@
-"""The first stages of every technique: scene parts copied to the device.
+"""Scene to device: the one place where scene dataclasses become the ``@wp.struct``s and
+arrays that kernels read. ``media``, ``geometry`` and ``physics`` take structs and arrays
+and know nothing of scenes; everything that reads a ``Scene`` to build them is here.
+
+``pinhole`` (Camera -> PinholeCamera), ``light_array`` (lights -> Light array),
+``SurfaceBuffers`` (surfaces -> one wp.Mesh and materials), ``MediaBuffers`` (media ->
+Media struct, hash grids, BVHs), ``medium_bounds`` / ``scene_bounds``, and
+``extinction_volume`` (the public sampler of a scene's sigma_t).
 
 ``SceneUploads`` owns the ``Media``, ``Surfaces`` and ``Light`` buffers and declares one
 stage per part, so a change to the lights re-uploads the lights and nothing else, and a
@@ -7,10 +14,238 @@ scene without surfaces skips building a BVH.
 
 from __future__ import annotations
 
-from .geometry.mesh import SurfaceBuffers
-from .media.volume import MediaBuffers
+import math
+
+import numpy as np
+import warp as wp
+
+from . import device as dev
+from .geometry.camera import PinholeCamera
+from .geometry.mesh import Surfaces
+from .media.grid import grid_majorant
+from .media.particles import particle_majorant
+from .media.rbf import CUTOFF, rbf_majorant
+from .media.volume import BOX, GRID, PARTICLES, RBF, SPHERE, Media, sample_extinction
+from .physics.brdf import Material
+from .physics.lights import KINDS, Light
+from .physics.phase import Phase, phase_struct
 from .pipeline import Stage, Technique
-from .shading import light_array
+from .scene import load_scene
+from .scene.model import Camera, GridMedium, HomogeneousMedium, RBFMedium, Scene
+
+
+def pinhole(camera: Camera) -> PinholeCamera:
+    o = np.asarray(camera.origin, np.float64)
+    f = np.asarray(camera.target, np.float64) - o
+    f /= np.linalg.norm(f)
+    r = np.cross(f, np.asarray(camera.up, np.float64))
+    r /= np.linalg.norm(r)
+    u = np.cross(r, f)
+    th = math.tan(math.radians(camera.fov_y) / 2.0)
+    cam = PinholeCamera()
+    cam.origin = wp.vec3(*o)
+    cam.forward = wp.vec3(*f)
+    cam.right = wp.vec3(*(r * th * camera.width / camera.height))
+    cam.up = wp.vec3(*(u * th))
+    cam.width, cam.height = camera.width, camera.height
+    return cam
+
+
+def light_array(scene, device) -> wp.array:
+    """The scene's lights as an array of ``Light`` structs."""
+    out = []
+    for light in scene.lights:
+        s = Light()
+        s.kind = KINDS[light.type]
+        s.position = wp.vec3(*light.position)
+        s.direction = wp.vec3(*light.direction)
+        s.strength = wp.vec3(*light.strength)
+        s.cos_inner = math.cos(math.radians(light.inner_angle))
+        s.cos_outer = math.cos(math.radians(light.outer_angle))
+        out.append(s)
+    return wp.array(out, dtype=Light, device=device) if out else wp.empty(0, dtype=Light, device=device)
+
+
+class SurfaceBuffers:
+    """Owns the ``wp.Mesh`` and material array behind a ``Surfaces`` struct."""
+
+    def __init__(self, scene: Scene, device):
+        s = Surfaces()
+        verts, faces, mats = [], [], []
+        base = 0
+        for surf in scene.surfaces:
+            verts.append(surf.vertices)
+            faces.append(surf.faces + base)
+            base += len(surf.vertices)
+            for colour in surf.diffuse:
+                m = Material()
+                m.diffuse = wp.vec3(*colour)
+                m.specular = surf.specular
+                m.shininess = surf.shininess
+                mats.append(m)
+        self.mesh = None
+        if faces:
+            self.mesh = wp.Mesh(
+                points=wp.array(np.concatenate(verts).astype(np.float32), dtype=wp.vec3, device=device),
+                indices=wp.array(np.concatenate(faces).astype(np.int32).ravel(), dtype=int, device=device),
+            )
+            s.mesh, s.present = self.mesh.id, 1
+        else:
+            s.mesh, s.present = wp.uint64(0), 0
+            mats = [Material()]
+        s.material = wp.array(mats, dtype=Material, device=device)
+        self.struct = s
+
+
+def medium_bounds(m) -> tuple[np.ndarray, np.ndarray] | None:
+    """Axis-aligned bounds (lo, hi) of a scene medium: RBFs reach CUTOFF radii past their
+    centres, particles one radius; None for an empty RBF or particle cloud."""
+    if isinstance(m, HomogeneousMedium):
+        half = 0.5 * np.asarray(m.size) if m.shape == "box" else np.full(3, m.radius)
+        return np.asarray(m.center) - half, np.asarray(m.center) + half
+    if isinstance(m, GridMedium):
+        return np.asarray(m.bounds_min), np.asarray(m.bounds_max)
+    pts = m.centers if isinstance(m, RBFMedium) else m.positions
+    if not len(pts):
+        return None
+    reach = float(CUTOFF) * m.radius if isinstance(m, RBFMedium) else m.radius
+    return pts.min(0) - reach, pts.max(0) + reach
+
+
+def scene_bounds(scene: Scene, media: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds (lo, hi) of the scene's surfaces and, with ``media``, its media; [-1, 1]^3 if empty."""
+    boxes = [(s.vertices.min(0), s.vertices.max(0)) for s in scene.surfaces]
+    if media:
+        boxes += [b for b in map(medium_bounds, scene.media) if b is not None]
+    if not boxes:
+        return np.full(3, -1.0), np.full(3, 1.0)
+    return np.min([b[0] for b in boxes], 0).astype(np.float64), np.max([b[1] for b in boxes], 0).astype(np.float64)
+
+
+class MediaBuffers:
+    """Owns the device arrays (and hash grids) behind a ``Media`` struct."""
+
+    def __init__(self, scene: Scene, device):
+        kinds, bmin, bmax, center, radius, sigma, albedo, phases, dims, offset = ([] for _ in range(10))
+        majorants, grid_chunks, point_chunks, tables = [], [], [], []
+        n_grid = n_points = n_table = 0
+        point_media = []
+        for m in scene.media:
+            ph, values = phase_struct(m.phase, n_table)
+            if len(values):
+                tables.append(values)
+                n_table += len(values)
+            phases.append(ph)
+            albedo.append(m.albedo)
+            dims.append((1, 1, 1))
+            offset.append(0)
+            center.append((0.0, 0.0, 0.0))
+            radius.append(0.0)
+            lo, hi = medium_bounds(m) or (np.full(3, 1.0), np.full(3, -1.0))  # empty cloud: nothing hits it
+            bmin.append(lo)
+            bmax.append(hi)
+            if isinstance(m, HomogeneousMedium):
+                kinds.append(int(BOX) if m.shape == "box" else int(SPHERE))
+                center[-1], radius[-1] = m.center, m.radius
+                sigma.append(m.sigma_t)
+                majorants.append(np.asarray(m.sigma_t))
+            elif isinstance(m, GridMedium):
+                kinds.append(int(GRID))
+                dz, dy, dx = m.density.shape
+                dims[-1], offset[-1] = (dx, dy, dz), n_grid
+                grid_chunks.append(m.density.ravel())
+                n_grid += m.density.size
+                sigma.append(m.sigma_t_scale)
+                majorants.append(grid_majorant(m.density) * np.asarray(m.sigma_t_scale))
+            else:
+                pts = m.centers if isinstance(m, RBFMedium) else m.positions
+                reach = float(CUTOFF) * m.radius if isinstance(m, RBFMedium) else m.radius
+                kinds.append(int(RBF) if isinstance(m, RBFMedium) else int(PARTICLES))
+                radius[-1], offset[-1] = m.radius, n_points
+                point_chunks.append(pts)
+                point_media.append((len(kinds) - 1, n_points, len(pts), reach))
+                n_points += len(pts)
+                scale = np.asarray(m.peak if isinstance(m, RBFMedium) else m.sigma_t)
+                sigma.append(tuple(scale))
+                bound = rbf_majorant(pts, m.radius) if isinstance(m, RBFMedium) else particle_majorant(pts, m.radius)
+                majorants.append(bound * scale)
+        count = len(kinds)
+        self.device = device
+        f3 = lambda rows: wp.array(np.asarray(rows, np.float32).reshape(-1, 3) if rows else np.zeros((1, 3), np.float32), dtype=wp.vec3, device=device)  # noqa: E731
+        s = Media()
+        s.count = count
+        s.kind = wp.array(np.asarray(kinds or [0], np.int32), dtype=int, device=device)
+        s.bmin, s.bmax, s.center = f3(bmin), f3(bmax), f3(center)
+        s.radius = wp.array(np.asarray(radius or [0.0], np.float32), dtype=float, device=device)
+        s.sigma, s.albedo = f3(sigma), f3(albedo)
+        s.phase = wp.array(phases or [Phase()], dtype=Phase, device=device)
+        s.dims = wp.array(np.asarray(dims or [(1, 1, 1)], np.int32), dtype=wp.vec3i, device=device)
+        s.offset = wp.array(np.asarray(offset or [0], np.int32), dtype=int, device=device)
+        s.grid_data = wp.array(np.concatenate(grid_chunks).astype(np.float32) if grid_chunks else np.zeros(1, np.float32), dtype=float, device=device)
+        pts_all = np.concatenate(point_chunks).astype(np.float32) if n_points else np.zeros((1, 3), np.float32)
+        s.points = wp.array(pts_all, dtype=wp.vec3, device=device)
+        s.phase_table = wp.array(np.concatenate(tables) if tables else np.zeros(1, np.float32), dtype=float, device=device)
+        self.hash_grids = []
+        ids = np.zeros(max(count, 1), np.uint64)
+        for i, first, n, reach in point_media:
+            if n == 0:
+                continue
+            hg = wp.HashGrid(64, 64, 64, device=device)
+            hg.build(s.points[first : first + n], reach)
+            self.hash_grids.append(hg)
+            ids[i] = hg.id
+        s.hash_grid = wp.array(ids, dtype=wp.uint64, device=device)
+        # a BVH over each RBF / particle medium's spheres (cut-off spheres for RBFs): rays find
+        # the components they cross for exact optical depth and free flight
+        self.bvhs = []
+        bvh_ids = np.zeros(max(count, 1), np.uint64)
+        for i, first, n, reach in point_media:
+            if n == 0:
+                continue
+            pts = pts_all[first : first + n]
+            bvh = wp.Bvh(wp.array(pts - reach, dtype=wp.vec3, device=device),
+                         wp.array(pts + reach, dtype=wp.vec3, device=device))
+            self.bvhs.append(bvh)
+            bvh_ids[i] = bvh.id
+        s.bvh = wp.array(bvh_ids, dtype=wp.uint64, device=device)
+        s.medium_majorant = f3([tuple(np.asarray(mj, np.float64) * np.ones(3)) for mj in majorants])
+        het = [k >= int(GRID) for k in kinds]
+        s.all_min, s.all_max = _union(bmin, bmax, [True] * count)
+        s.het_min, s.het_max = _union(bmin, bmax, het)
+        s.majorant = wp.vec3(*np.sum(majorants, axis=0)) if count else wp.vec3(0.0)
+        het_maj = [mj for mj, h in zip(majorants, het) if h]
+        s.het_majorant = wp.vec3(*np.sum(het_maj, axis=0)) if het_maj else wp.vec3(0.0)
+        self.struct = s
+        #: Extinction is the same in R, G and B everywhere: one distance sampling serves all three.
+        self.grey = all(abs(v[0] - v[1]) < 1e-12 and abs(v[0] - v[2]) < 1e-12 for v in sigma)
+
+
+def _union(bmin, bmax, mask):
+    lo = [b for b, k in zip(bmin, mask) if k]
+    hi = [b for b, k in zip(bmax, mask) if k]
+    if not lo:
+        return wp.vec3(1.0), wp.vec3(-1.0)
+    return wp.vec3(*np.min(lo, 0).astype(np.float32)), wp.vec3(*np.max(hi, 0).astype(np.float32))
+
+
+def extinction_volume(scene, resolution: int = 64, device: str | None = None):
+    """The scene's extinction sampled at cell centres over the union of its media's bounds.
+
+    Returns (sigma_t, bounds_min, bounds_max): sigma_t of shape (D, H, W, 3) in inverse
+    scene units, [z, y, x] like a grid medium's density, with ``resolution`` cells along
+    the longest side. For looking inside volumes (pyvista) and checking techniques' grids.
+    """
+    scene = load_scene(scene)
+    device = dev.pick(device)
+    if not scene.media:
+        raise ValueError(f"{scene.source}: the scene has no media (allowed: a scene with at least one medium)")
+    buffers = MediaBuffers(scene, device)
+    lo, hi = np.asarray(buffers.struct.all_min, np.float64), np.asarray(buffers.struct.all_max, np.float64)
+    extent = hi - lo
+    dims = np.maximum(1, np.round(resolution * extent / extent.max())).astype(int)
+    out = wp.empty(int(np.prod(dims)), dtype=wp.vec3, device=device)
+    dev.launch(sample_extinction, out.shape[0], [buffers.struct, wp.vec3(*lo), wp.vec3(*hi), wp.vec3i(*dims), out], device)
+    return out.numpy().reshape(dims[2], dims[1], dims[0], 3), tuple(lo), tuple(hi)
 
 
 class SceneUploads:

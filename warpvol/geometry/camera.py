@@ -1,11 +1,7 @@
 """Pinhole camera: look_at, vertical field of view, rays through pixel positions."""
 
-import math
-
-import numpy as np
 import warp as wp
 
-from ..scene.model import Camera
 from .raster import RasterView
 
 
@@ -25,23 +21,6 @@ def camera_ray(cam: PinholeCamera, px: float, py: float) -> wp.vec3:
     sx = 2.0 * px / float(cam.width) - 1.0
     sy = 1.0 - 2.0 * py / float(cam.height)
     return wp.normalize(cam.forward + sx * cam.right + sy * cam.up)
-
-
-def pinhole(camera: Camera) -> PinholeCamera:
-    o = np.asarray(camera.origin, np.float64)
-    f = np.asarray(camera.target, np.float64) - o
-    f /= np.linalg.norm(f)
-    r = np.cross(f, np.asarray(camera.up, np.float64))
-    r /= np.linalg.norm(r)
-    u = np.cross(r, f)
-    th = math.tan(math.radians(camera.fov_y) / 2.0)
-    cam = PinholeCamera()
-    cam.origin = wp.vec3(*o)
-    cam.forward = wp.vec3(*f)
-    cam.right = wp.vec3(*(r * th * camera.width / camera.height))
-    cam.up = wp.vec3(*(u * th))
-    cam.width, cam.height = camera.width, camera.height
-    return cam
 
 
 def camera_view(cam: PinholeCamera) -> RasterView:

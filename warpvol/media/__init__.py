@@ -1,5 +1,5 @@
-"""Turning a scene's media into what kernels read."""
+"""What kernels read of the media: the ``Media`` struct and its lookups (built by ``warpvol.upload``)."""
 
-from .volume import Media, MediaBuffers
+from .volume import Media
 
-__all__ = ["Media", "MediaBuffers"]
+__all__ = ["Media"]

@@ -19,16 +19,14 @@ collisions per unit.
 
 from __future__ import annotations
 
-import numpy as np
 import warp as wp
 
 from ..physics.constants import INF, SQRT2, SQRT_HALF_PI
-from ..physics.phase import Phase, phase_eval, phase_struct
+from ..physics.phase import Phase, phase_eval
 from ..physics.transmittance import transmittance_rgb
-from ..scene.model import GridMedium, HomogeneousMedium, ParticleMedium, RBFMedium, Scene
-from .grid import grid_majorant, grid_trilinear
-from .particles import particle_count, particle_majorant
-from .rbf import CUTOFF, rbf_density, rbf_majorant
+from .grid import grid_trilinear
+from .particles import particle_count
+from .rbf import CUTOFF, rbf_density
 
 BOX = wp.constant(0)
 SPHERE = wp.constant(1)
@@ -321,137 +319,6 @@ def free_flight(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: float, c: int, 
     return best, who
 
 
-def medium_bounds(m) -> tuple[np.ndarray, np.ndarray] | None:
-    """Axis-aligned bounds (lo, hi) of a scene medium: RBFs reach CUTOFF radii past their
-    centres, particles one radius; None for an empty RBF or particle cloud."""
-    if isinstance(m, HomogeneousMedium):
-        half = 0.5 * np.asarray(m.size) if m.shape == "box" else np.full(3, m.radius)
-        return np.asarray(m.center) - half, np.asarray(m.center) + half
-    if isinstance(m, GridMedium):
-        return np.asarray(m.bounds_min), np.asarray(m.bounds_max)
-    pts = m.centers if isinstance(m, RBFMedium) else m.positions
-    if not len(pts):
-        return None
-    reach = float(CUTOFF) * m.radius if isinstance(m, RBFMedium) else m.radius
-    return pts.min(0) - reach, pts.max(0) + reach
-
-
-def scene_bounds(scene: Scene, media: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """Bounds (lo, hi) of the scene's surfaces and, with ``media``, its media; [-1, 1]^3 if empty."""
-    boxes = [(s.vertices.min(0), s.vertices.max(0)) for s in scene.surfaces]
-    if media:
-        boxes += [b for b in map(medium_bounds, scene.media) if b is not None]
-    if not boxes:
-        return np.full(3, -1.0), np.full(3, 1.0)
-    return np.min([b[0] for b in boxes], 0).astype(np.float64), np.max([b[1] for b in boxes], 0).astype(np.float64)
-
-
-class MediaBuffers:
-    """Owns the device arrays (and hash grids) behind a ``Media`` struct."""
-
-    def __init__(self, scene: Scene, device):
-        kinds, bmin, bmax, center, radius, sigma, albedo, phases, dims, offset = ([] for _ in range(10))
-        majorants, grid_chunks, point_chunks, tables = [], [], [], []
-        n_grid = n_points = n_table = 0
-        point_media = []
-        for m in scene.media:
-            ph, values = phase_struct(m.phase, n_table)
-            if len(values):
-                tables.append(values)
-                n_table += len(values)
-            phases.append(ph)
-            albedo.append(m.albedo)
-            dims.append((1, 1, 1))
-            offset.append(0)
-            center.append((0.0, 0.0, 0.0))
-            radius.append(0.0)
-            lo, hi = medium_bounds(m) or (np.full(3, 1.0), np.full(3, -1.0))  # empty cloud: nothing hits it
-            bmin.append(lo)
-            bmax.append(hi)
-            if isinstance(m, HomogeneousMedium):
-                kinds.append(int(BOX) if m.shape == "box" else int(SPHERE))
-                center[-1], radius[-1] = m.center, m.radius
-                sigma.append(m.sigma_t)
-                majorants.append(np.asarray(m.sigma_t))
-            elif isinstance(m, GridMedium):
-                kinds.append(int(GRID))
-                dz, dy, dx = m.density.shape
-                dims[-1], offset[-1] = (dx, dy, dz), n_grid
-                grid_chunks.append(m.density.ravel())
-                n_grid += m.density.size
-                sigma.append(m.sigma_t_scale)
-                majorants.append(grid_majorant(m.density) * np.asarray(m.sigma_t_scale))
-            else:
-                pts = m.centers if isinstance(m, RBFMedium) else m.positions
-                reach = float(CUTOFF) * m.radius if isinstance(m, RBFMedium) else m.radius
-                kinds.append(int(RBF) if isinstance(m, RBFMedium) else int(PARTICLES))
-                radius[-1], offset[-1] = m.radius, n_points
-                point_chunks.append(pts)
-                point_media.append((len(kinds) - 1, n_points, len(pts), reach))
-                n_points += len(pts)
-                scale = np.asarray(m.peak if isinstance(m, RBFMedium) else m.sigma_t)
-                sigma.append(tuple(scale))
-                bound = rbf_majorant(pts, m.radius) if isinstance(m, RBFMedium) else particle_majorant(pts, m.radius)
-                majorants.append(bound * scale)
-        count = len(kinds)
-        self.device = device
-        f3 = lambda rows: wp.array(np.asarray(rows, np.float32).reshape(-1, 3) if rows else np.zeros((1, 3), np.float32), dtype=wp.vec3, device=device)  # noqa: E731
-        s = Media()
-        s.count = count
-        s.kind = wp.array(np.asarray(kinds or [0], np.int32), dtype=int, device=device)
-        s.bmin, s.bmax, s.center = f3(bmin), f3(bmax), f3(center)
-        s.radius = wp.array(np.asarray(radius or [0.0], np.float32), dtype=float, device=device)
-        s.sigma, s.albedo = f3(sigma), f3(albedo)
-        s.phase = wp.array(phases or [Phase()], dtype=Phase, device=device)
-        s.dims = wp.array(np.asarray(dims or [(1, 1, 1)], np.int32), dtype=wp.vec3i, device=device)
-        s.offset = wp.array(np.asarray(offset or [0], np.int32), dtype=int, device=device)
-        s.grid_data = wp.array(np.concatenate(grid_chunks).astype(np.float32) if grid_chunks else np.zeros(1, np.float32), dtype=float, device=device)
-        pts_all = np.concatenate(point_chunks).astype(np.float32) if n_points else np.zeros((1, 3), np.float32)
-        s.points = wp.array(pts_all, dtype=wp.vec3, device=device)
-        s.phase_table = wp.array(np.concatenate(tables) if tables else np.zeros(1, np.float32), dtype=float, device=device)
-        self.hash_grids = []
-        ids = np.zeros(max(count, 1), np.uint64)
-        for i, first, n, reach in point_media:
-            if n == 0:
-                continue
-            hg = wp.HashGrid(64, 64, 64, device=device)
-            hg.build(s.points[first : first + n], reach)
-            self.hash_grids.append(hg)
-            ids[i] = hg.id
-        s.hash_grid = wp.array(ids, dtype=wp.uint64, device=device)
-        # a BVH over each RBF / particle medium's spheres (cut-off spheres for RBFs): rays find
-        # the components they cross for exact optical depth and free flight
-        self.bvhs = []
-        bvh_ids = np.zeros(max(count, 1), np.uint64)
-        for i, first, n, reach in point_media:
-            if n == 0:
-                continue
-            pts = pts_all[first : first + n]
-            bvh = wp.Bvh(wp.array(pts - reach, dtype=wp.vec3, device=device),
-                         wp.array(pts + reach, dtype=wp.vec3, device=device))
-            self.bvhs.append(bvh)
-            bvh_ids[i] = bvh.id
-        s.bvh = wp.array(bvh_ids, dtype=wp.uint64, device=device)
-        s.medium_majorant = f3([tuple(np.asarray(mj, np.float64) * np.ones(3)) for mj in majorants])
-        het = [k >= int(GRID) for k in kinds]
-        s.all_min, s.all_max = _union(bmin, bmax, [True] * count)
-        s.het_min, s.het_max = _union(bmin, bmax, het)
-        s.majorant = wp.vec3(*np.sum(majorants, axis=0)) if count else wp.vec3(0.0)
-        het_maj = [mj for mj, h in zip(majorants, het) if h]
-        s.het_majorant = wp.vec3(*np.sum(het_maj, axis=0)) if het_maj else wp.vec3(0.0)
-        self.struct = s
-        #: Extinction is the same in R, G and B everywhere: one distance sampling serves all three.
-        self.grey = all(abs(v[0] - v[1]) < 1e-12 and abs(v[0] - v[2]) < 1e-12 for v in sigma)
-
-
-def _union(bmin, bmax, mask):
-    lo = [b for b, k in zip(bmin, mask) if k]
-    hi = [b for b, k in zip(bmax, mask) if k]
-    if not lo:
-        return wp.vec3(1.0), wp.vec3(-1.0)
-    return wp.vec3(*np.min(lo, 0).astype(np.float32)), wp.vec3(*np.max(hi, 0).astype(np.float32))
-
-
 @wp.kernel
 def sample_extinction(offset: int, m: Media, lo: wp.vec3, hi: wp.vec3, n: wp.vec3i, out: wp.array(dtype=wp.vec3)):
     """sigma_t at the cell centres of an n[0] x n[1] x n[2] lattice over [lo, hi], x fastest."""
@@ -461,26 +328,3 @@ def sample_extinction(offset: int, m: Media, lo: wp.vec3, hi: wp.vec3, n: wp.vec
     iz = tid / (n[0] * n[1])
     f = wp.vec3((float(ix) + 0.5) / float(n[0]), (float(iy) + 0.5) / float(n[1]), (float(iz) + 0.5) / float(n[2]))
     out[tid] = sigma_t_at(m, lo + wp.cw_mul(hi - lo, f), False)
-
-
-def extinction_volume(scene, resolution: int = 64, device: str | None = None):
-    """The scene's extinction sampled at cell centres over the union of its media's bounds.
-
-    Returns (sigma_t, bounds_min, bounds_max): sigma_t of shape (D, H, W, 3) in inverse
-    scene units, [z, y, x] like a grid medium's density, with ``resolution`` cells along
-    the longest side. For looking inside volumes (pyvista) and checking techniques' grids.
-    """
-    from .. import device as dev
-    from ..scene import load_scene
-
-    scene = load_scene(scene)
-    device = dev.pick(device)
-    if not scene.media:
-        raise ValueError(f"{scene.source}: the scene has no media (allowed: a scene with at least one medium)")
-    buffers = MediaBuffers(scene, device)
-    lo, hi = np.asarray(buffers.struct.all_min, np.float64), np.asarray(buffers.struct.all_max, np.float64)
-    extent = hi - lo
-    dims = np.maximum(1, np.round(resolution * extent / extent.max())).astype(int)
-    out = wp.empty(int(np.prod(dims)), dtype=wp.vec3, device=device)
-    dev.launch(sample_extinction, out.shape[0], [buffers.struct, wp.vec3(*lo), wp.vec3(*hi), wp.vec3i(*dims), out], device)
-    return out.numpy().reshape(dims[2], dims[1], dims[0], 3), tuple(lo), tuple(hi)

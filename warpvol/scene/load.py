@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from ..geometry import shapes
+from . import shapes
 from .model import (
     Camera,
     GridMedium,

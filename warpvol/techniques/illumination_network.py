@@ -76,7 +76,7 @@ import numpy as np
 import warp as wp
 
 from .. import device as dev
-from ..geometry.camera import PinholeCamera, camera_ray, pinhole
+from ..geometry.camera import PinholeCamera, camera_ray
 from ..media.particles import sphere_chord
 from ..physics.constants import INV_4PI, PI
 from ..physics.lights import DIRECTIONAL, Light, particle_incident
@@ -84,7 +84,7 @@ from ..physics.phase import Phase, orthonormal_basis, phase_eval, phase_struct
 from ..physics.sphere import fibonacci_directions
 from ..physics.transmittance import sphere_escape, step_integral_rgb, transmittance_rgb
 from ..pipeline import Setting, SettingsError, Stage, Technique
-from ..upload import SceneUploads
+from ..upload import SceneUploads, pinhole
 
 NAME = "illumination_network"
 SETTINGS = {

@@ -64,20 +64,20 @@ import numpy as np
 import warp as wp
 
 from .. import device as dev
-from ..geometry.camera import PinholeCamera, camera_ray, camera_view, pinhole
+from ..geometry.camera import PinholeCamera, camera_ray, camera_view
 from ..geometry.mesh import Surfaces, surface_hit
 from ..geometry.raster import (KEY_RANGE, NO_HIT, RasterView, key_hit, owner, raster_triangle,
                               raster_triangle_tile, split_long_edges, triangle_at, triangle_tiles)
 from ..geometry.shadowmap import (ShadowMap, map_faces_touched, map_view, shadow_map_for, shadow_visibility,
                                   texel_ray, texel_world_size, texels)
-from ..media.volume import Media, homogeneous_optical_depth, in_scatter_at, ray_box, scene_bounds, sigma_t_at
+from ..media.volume import Media, homogeneous_optical_depth, in_scatter_at, ray_box, sigma_t_at
 from ..physics.brdf import brdf_eval
 from ..physics.constants import INF, RAY_EPS
 from ..physics.lights import Light, light_incident
 from ..physics.transmittance import transmittance_rgb
 from ..pipeline import Setting, Stage, Technique
 from ..shading import marched_optical_depth
-from ..upload import SceneUploads
+from ..upload import SceneUploads, pinhole, scene_bounds
 
 NAME = "light_shafts"
 SETTINGS = {

@@ -24,7 +24,7 @@ from __future__ import annotations
 import warp as wp
 
 from .. import device as dev
-from ..geometry.camera import PinholeCamera, camera_ray, pinhole
+from ..geometry.camera import PinholeCamera, camera_ray
 from ..geometry.mesh import Surfaces, occluded, surface_hit
 from ..media.grid import lattice_trilinear_vec3
 from ..media.volume import Media, in_scatter_at, ray_box, sigma_t_at
@@ -33,7 +33,7 @@ from ..physics.lights import Light, light_incident
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Setting, SettingsError, Stage, Technique
 from ..shading import light_transmittance, marched_optical_depth, surface_direct
-from ..upload import SceneUploads
+from ..upload import SceneUploads, pinhole
 
 NAME = "raymarch"
 SETTINGS = {

@@ -57,11 +57,11 @@ import numpy as np
 import warp as wp
 
 from .. import device as dev
-from ..geometry.camera import PinholeCamera, camera_ray, pinhole
+from ..geometry.camera import PinholeCamera, camera_ray
 from ..geometry.mesh import Surfaces, surface_hit
 from ..media.grid import grid_trilinear
 from ..media.rbf import CUTOFF
-from ..media.volume import Media, MediaBuffers, medium_bounds, ray_box, scene_bounds, sigma_t_at
+from ..media.volume import Media, ray_box, sigma_t_at
 from ..physics.brdf import brdf_eval
 from ..physics.constants import INF
 from ..physics.lights import DIRECTIONAL, Light, light_incident
@@ -69,7 +69,7 @@ from ..physics.phase import Phase, phase_eval, phase_struct
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Setting, Stage, Technique
 from ..scene.model import RBFMedium
-from ..upload import SceneUploads
+from ..upload import MediaBuffers, SceneUploads, medium_bounds, pinhole, scene_bounds
 
 NAME = "rbf_propagation"
 SETTINGS = {

@@ -34,7 +34,7 @@ import warp as wp
 from tqdm import tqdm
 
 from .. import device as dev
-from ..geometry.camera import PinholeCamera, camera_ray, pinhole
+from ..geometry.camera import PinholeCamera, camera_ray
 from ..geometry.mesh import Surfaces, surface_hit
 from ..media.volume import Media, free_flight, in_scatter_at, ray_box, transmittance_estimate
 from ..physics.brdf import brdf_eval
@@ -43,7 +43,7 @@ from ..physics.lights import DIRECTIONAL, Light, light_incident
 from ..physics.phase import orthonormal_basis, phase_eval, phase_sample
 from ..pipeline import Setting, Stage, Technique
 from ..shading import light_transmittance, surface_direct
-from ..upload import SceneUploads
+from ..upload import SceneUploads, pinhole
 
 NAME = "reference"
 SETTINGS = {
