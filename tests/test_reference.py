@@ -188,3 +188,18 @@ def test_light_at_particle_centre_and_grazing_rays(device):
     for tech, kw in (("reference", {"spp": 16}), ("raymarch", {})):
         img = wv.render(scene, technique=tech, device=device, **kw).image
         assert np.all(np.isfinite(img)) and np.all(img >= 0)
+
+
+def test_sample_slots_share_a_pixel_without_bias(monkeypatch):
+    """A launch of pixels x slots threads (as on a GPU, where a small image must still fill the
+    device) estimates the same image as one thread per pixel: the two image means agree within
+    5 standard errors of their difference (two-seed noise estimates of each)."""
+    from warpvol.techniques import reference
+
+    scene = wv.load_scene("particle-cloud", ["camera.width=12", "camera.height=10"])
+    one, se_one = two_seed_render(scene, "cpu", spp=24)
+    monkeypatch.setitem(reference.IN_FLIGHT, "cpu", 1 << 18)  # 24 slots a pixel, one sample each
+    many, se_many = two_seed_render(scene, "cpu", spp=24)
+    se = np.sqrt(np.sum(se_one**2) + np.sum(se_many**2)) / one.size
+    assert abs(one.mean() - many.mean()) < 5 * se, (one.mean(), many.mean(), se)
+    assert not np.array_equal(one, many)  # the slots really ran: other random streams

@@ -85,11 +85,16 @@ def _run_chunks(kernel, device: str, n: int, jobs: list) -> None:
         f.result()
 
 
-def launch(kernel, dim: int, inputs: list, device: str, split: bool = True, min_split: int | None = None):
+def launch(kernel, dim: int, inputs: list, device: str, split: bool = True, min_split: int | None = None,
+           work: float = 1.0):
     """Launch ``kernel`` over ``dim`` threads; its first argument is the index offset.
-    ``min_split`` overrides ``MIN_SPLIT`` for kernels whose threads each do much work."""
+
+    A CPU launch is split over the cores when its work, ``dim`` times ``work`` (the cost of
+    one thread in units of a simple per-pixel thread, e.g. the samples each thread takes), is
+    at least ``MIN_SPLIT``: a few thousand threads that each trace hundreds of paths fill
+    every core. ``min_split`` overrides ``MIN_SPLIT`` for kernels whose threads each do much work."""
     n = threads() if split and str(device) == "cpu" else 1
-    if n <= 1 or dim < (MIN_SPLIT if min_split is None else min_split):  # small launches cost less than handing them to threads
+    if n <= 1 or dim < n or dim * work < (MIN_SPLIT if min_split is None else min_split):  # handing out costs ~1 ms
         wp.launch(kernel, dim=dim, inputs=[0, *inputs], device=device)
         return
     chunks = 4 * n  # several per thread, so uneven pixels (a bright corner) balance out

@@ -34,9 +34,11 @@ import warp as wp
 from tqdm import tqdm
 
 from .. import device as dev
-from ..geometry.camera import PinholeCamera, camera_ray
+from ..geometry.camera import camera_view
+from ..geometry.intersect import ray_box
 from ..geometry.mesh import Surfaces, surface_hit
-from ..media.volume import Media, free_flight, in_scatter_at, ray_box, transmittance_estimate
+from ..geometry.raster import RasterView, view_ray_at
+from ..media.volume import Media, free_flight, in_scatter_at, transmittance_estimate
 from ..physics.brdf import brdf_eval
 from ..physics.constants import INF, PI, RAY_EPS, STREAM, TWO_PI
 from ..physics.lights import DIRECTIONAL, Light, light_incident
@@ -60,6 +62,7 @@ class PathSettings:
     channel: int  # -1: grey extinction, trace RGB together; else the one channel traced
     pixel_area: int
     spp: int  # samples per pixel in this launch
+    slots: int  # threads that share a pixel's samples
     seed: int
 
 
@@ -133,15 +136,14 @@ def segment_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), o: wp.v
 
 
 @wp.func
-def trace_path(cam: PinholeCamera, m: Media, s: Surfaces, lights: wp.array(dtype=Light), background: wp.vec3,
+def trace_path(cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Light), background: wp.vec3,
                st: PathSettings, px: int, py: int, rng: wp.uint32) -> wp.vec3:
     jx = float(0.5)
     jy = float(0.5)
     if st.pixel_area != 0:
         jx = wp.randf(rng)
         jy = wp.randf(rng)
-    o = cam.origin
-    d = camera_ray(cam, float(px) + jx, float(py) + jy)
+    o, d = view_ray_at(cam, float(px) + jx, float(py) + jy)
     c = wp.max(st.channel, 0)
     mu = m.majorant[c]
     beta = wp.vec3(1.0)
@@ -209,16 +211,27 @@ def trace_path(cam: PinholeCamera, m: Media, s: Surfaces, lights: wp.array(dtype
 
 
 @wp.kernel
-def trace_paths(offset: int, cam: PinholeCamera, m: Media, s: Surfaces, lights: wp.array(dtype=Light),
+def trace_paths(offset: int, cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Light),
                 background: wp.vec3, st: PathSettings, accum: wp.array(dtype=wp.vec3d)):
+    """Thread (slot, pixel) traces its share of the pass's ``st.spp`` samples of the pixel
+    (``st.slots`` threads share a pixel) and adds their sum to ``accum[thread]`` in float64."""
     tid = wp.tid() + offset
-    px = tid % cam.width
-    py = tid / cam.width
+    npix = cam.width * cam.height
+    p = tid % npix
+    slot = tid / npix
+    px = p % cam.width
+    py = p / cam.width
     rng = wp.rand_init(st.seed, tid)
+    count = st.spp / st.slots + wp.where(slot < st.spp % st.slots, 1, 0)
     total = wp.vec3(0.0)
-    for k in range(st.spp):
+    for k in range(count):
         total += trace_path(cam, m, s, lights, background, st, px, py, wp.rand_init(wp.randi(rng), STREAM))
     accum[tid] = accum[tid] + wp.vec3d(wp.float64(total[0]), wp.float64(total[1]), wp.float64(total[2]))
+
+
+#: Threads a launch should keep in flight: a GPU wants hundreds of thousands (pixels x sample
+#: slots); the CPU splits one thread per pixel over its cores (``device.launch`` by work).
+IN_FLIGHT = {"cpu": 1, "cuda": 1 << 18}
 
 
 class Reference(Technique):
@@ -241,24 +254,29 @@ class Reference(Technique):
     def _trace(self):
         scene, u, settings = self.scene, self.uploads, self.settings
         npix = scene.camera.width * scene.camera.height
-        accum = wp.zeros(npix, dtype=wp.vec3d, device=self.device)
         spp = settings["spp"]
         channels = [-1] if u.media.grey else [0, 1, 2]
-        # launches of about 2^20 paths keep the progress bar moving and sums well-conditioned
-        per_launch = max(1, min(spp, (1 << 20) // max(npix, 1)))
-        passes = [(ch, k) for ch in channels for k in range(0, spp, per_launch)]
+        # passes of about 2^20 paths keep the progress bar moving and sums well-conditioned;
+        # a pass is pixels x slots threads, slots enough to fill the device
+        per_pass = max(1, min(spp, (1 << 20) // max(npix, 1)))
+        in_flight = IN_FLIGHT["cuda" if str(self.device).startswith("cuda") else "cpu"]
+        slots = max(1, min(per_pass, in_flight // max(npix, 1)))
+        accum = wp.zeros(npix * slots, dtype=wp.vec3d, device=self.device)
+        passes = [(ch, k) for ch in channels for k in range(0, spp, per_pass)]
         st = PathSettings()
         st.max_events = settings["max_bounces"] if settings["max_bounces"] >= 0 else 1 << 30
         st.pixel_area = settings["pixel_area"]
-        cam = pinhole(scene.camera)
+        cam = camera_view(pinhole(scene.camera))
         bar = tqdm(passes, desc=f"reference {spp} spp", unit="pass", delay=1.0, disable=not self.progress, leave=False)
         for i, (ch, k) in enumerate(bar):
             st.channel = ch
-            st.spp = min(per_launch, spp - k)
+            st.spp = min(per_pass, spp - k)
+            st.slots = min(slots, st.spp)
             st.seed = (settings["seed"] * 1_000_003 + i) % (2**31)
-            dev.launch(trace_paths, npix, [cam, u.media.struct, u.surfaces, u.lights,
-                                           wp.vec3(*scene.background), st, accum], self.device)
-        self.image = (accum.numpy() / spp).astype(np.float32)
+            dev.launch(trace_paths, npix * st.slots, [cam, u.media.struct, u.surfaces, u.lights,
+                                                      wp.vec3(*scene.background), st, accum], self.device,
+                       work=st.spp / st.slots)
+        self.image = (accum.numpy().reshape(slots, npix, 3).sum(0) / spp).astype(np.float32)
 
     def output(self):
         return self.image
