@@ -1,7 +1,7 @@
 """Compile warpvol's kernel modules for CUDA without a GPU (NVRTC, ahead of time), to catch
 CUDA-only build errors on machines that have none:
 
-    python -m bench.cuda_compile [--arch 90] [module ...]
+    python -m warpvol.bench.cuda_compile [--arch 90] [module ...]
 
 Modules default to every technique; each takes one to six minutes on two CPU cores. The PTX goes
 to a temporary folder and is thrown away: this checks that the code builds, nothing more.
@@ -15,18 +15,18 @@ import sys
 import tempfile
 import time
 
-TECHNIQUES = ["light_shafts", "raymarch", "reference", "rbf_propagation", "illumination_network"]
+import warp as wp
+
+import warpvol as wv
+from warpvol import device
 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--arch", type=int, default=90, help="SM architecture (90: H100/H200)")
-    p.add_argument("modules", nargs="*", default=TECHNIQUES, help="technique modules (default: all)")
+    p.add_argument("modules", nargs="*", default=wv.technique_names(), help="technique modules (default: all)")
     args = p.parse_args(argv)
-    import warp as wp
-
-    wp.config.quiet = True
-    wp.init()
+    device.init()
     failed = 0
     with tempfile.TemporaryDirectory() as out:
         for name in args.modules:

@@ -1,6 +1,6 @@
 """Measure the foundation on this machine and write results/foundation/<machine>.json + README.md.
 
-    DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM-19.so python bench/foundation.py [--out results/foundation]
+    DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM-19.so python -m warpvol.bench.foundation [--out results/foundation]
 
 (``apt-get install libllvm19`` provides that library; without it Mitsuba's llvm variant is skipped.)
 
@@ -27,6 +27,8 @@ import warp as wp
 
 import warpvol as wv
 from warpvol.scene.procedural import BUILTIN
+
+LAMP = "scenes/lamp-outside.toml"  # the scene tests/test_mitsuba.py validates the reference on
 
 
 def machine() -> str:
@@ -85,9 +87,6 @@ def mitsuba_ratio():
         import mitsuba as mi
     except ImportError:
         return None
-    sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
-    from test_mitsuba import LAMP  # the validated scene
-
     rows = []
     for variant in ("llvm_ad_rgb", "scalar_rgb"):
         if variant.startswith("llvm") and not os.environ.get("DRJIT_LIBLLVM_PATH"):
@@ -170,7 +169,7 @@ def main():
     wv.device.init()
     data = {"machine": machine(), "warp": wp.__version__, "commit": commit(),
             "command": ("DRJIT_LIBLLVM_PATH=" + os.environ["DRJIT_LIBLLVM_PATH"] + " " if os.environ.get("DRJIT_LIBLLVM_PATH") else "")
-            + "python bench/foundation.py --out " + args.out}
+            + "python -m warpvol.bench.foundation --out " + args.out}
     data["scenes"] = scene_times()
     data["threads"] = thread_speedup()
     data["mitsuba"] = mitsuba_ratio()

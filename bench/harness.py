@@ -4,7 +4,9 @@ A sweep is a list of independent points (parameter dicts). ``run_sweep`` measure
 points that ``results/<sweep>/<device>.json`` does not hold yet (so an interrupted run
 resumes), shows a progress bar with ETA, and rewrites the file after every row. Points
 can be handed to any ``concurrent.futures.Executor`` (``measure_point`` is a top-level
-function of picklable arguments), so a cluster can run them.
+function of picklable arguments: a ``Sweep`` holds top-level functions), so a cluster can run them.
+The runner knows sweeps only through the object it is given; ``sweeps`` imports it, not the
+other way round.
 
 Frame times exclude JIT compilation and warm-up: the first frame is timed apart
 (``first_frame_ms``); then ``repeats`` frames are timed with every scene part marked
@@ -224,15 +226,12 @@ def write_rows(path: Path, sweep, rows: list[dict], command: str) -> None:
     tmp.replace(path)  # an interrupted write never leaves a half file
 
 
-def measure_point(sweep_name: str, params: dict, device: str, quick: bool) -> dict:
-    """Measure one point of a sweep: the row, with the common fields filled in."""
-    from .sweeps import SWEEPS
-
-    sweep = SWEEPS[sweep_name]
+def measure_point(sweep, params: dict, device: str, quick: bool) -> dict:
+    """Measure one point of ``sweep`` (a ``sweeps.Sweep``): the row, with the common fields filled in."""
     with PeakMemory(device) as mem:
         row = sweep.measure(params, device, quick)
     row.pop("frame", None)
-    return {"sweep": sweep_name, "technique": sweep.technique, "params": params, **row,
+    return {"sweep": sweep.name, "technique": sweep.technique, "params": params, **row,
             "peak_mem_mb": round(mem.mb, 1), "device": device_name(device), "warp": wp.config.version,
             "commit": git_commit(), "paper": sweep.paper_figure(params),
             "measured": time.strftime("%Y-%m-%d %H:%M:%S")}
@@ -267,9 +266,9 @@ def run_sweep(sweep, device: str, out: Path, quick: bool = False, executor=None,
     if executor is None:
         for params in todo:
             bar.set_postfix_str(", ".join(f"{k}={v}" for k, v in params.items()), refresh=False)
-            keep(measure_point(sweep.name, params, device, quick))
+            keep(measure_point(sweep, params, device, quick))
     else:
-        futures = [executor.submit(measure_point, sweep.name, p, device, quick) for p in todo]
+        futures = [executor.submit(measure_point, sweep, p, device, quick) for p in todo]
         from concurrent.futures import as_completed
 
         for fut in as_completed(futures):

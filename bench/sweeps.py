@@ -126,7 +126,7 @@ def _overhead(params: dict, device: str, quick: bool) -> dict:
 
 # --- light shafts (papers/001) ----------------------------------------------------------------
 
-def _shafts_scene(quick: bool, width=800, height=600):
+def shafts_scene(quick: bool, width=800, height=600):
     """colonnade-shafts: 65 660 triangles, one point light in homogeneous fog."""
     if quick:
         width, height = 80, 60
@@ -146,7 +146,7 @@ def _shafts_frame(params: dict, device: str, quick: bool) -> dict:
     pass, the march and the block sums run; the BVH and the medium stay cached."""
     settings = {"steps": 64, **SHAFT_MODES.get(params.get("mode"), {}),
                 **{k: v for k, v in params.items() if k != "mode"}}
-    r = wv.Renderer(_shafts_scene(quick), technique="light_shafts", device=device, **settings)
+    r = wv.Renderer(shafts_scene(quick), technique="light_shafts", device=device, **settings)
     row = time_frames(r, repeats=2 if quick else 5, invalidate=("camera", "lights"))
     row["settings"] = settings
     return row
@@ -170,7 +170,7 @@ def _shafts_accuracy_grid(quick: bool) -> list[dict]:
 
 
 def _shafts_accuracy(params: dict, device: str, quick: bool) -> dict:
-    scene = _shafts_scene(quick, *ACCURACY_SIZE)
+    scene = shafts_scene(quick, *ACCURACY_SIZE)
     base = baseline_image(scene, "raymarch", device, steps=64 if quick else 1024)
     r = wv.Renderer(scene, technique="light_shafts", device=device, **params)
     row = time_frames(r, repeats=2 if quick else 3, invalidate=("camera", "lights"))
@@ -190,7 +190,7 @@ def _shafts_edges(params: dict, device: str, quick: bool) -> dict:
     the others. Jitter off, so only the interleaving differs."""
     import numpy as np
 
-    scene = _shafts_scene(quick)
+    scene = shafts_scene(quick)
     full_r = wv.Renderer(scene, technique="light_shafts", device=device, steps=64, block=1, jitter=0)
     full = full_r.render().image
     depth = np.minimum(full_r.arrays(slice_res=2)["depth"], 1e3)
@@ -231,10 +231,8 @@ def _shafts_speedup(params: dict, device: str, quick: bool) -> dict:
     import statistics
     import time
 
-    import warp as wp
-
     n, m = params["steps"], params["block"]
-    scene = _shafts_scene(quick)
+    scene = shafts_scene(quick)
     rs = {k: wv.Renderer(scene, technique="light_shafts", device=device, steps=n, block=k) for k in (1, m)}
     t0 = time.perf_counter()
     for r in rs.values():
@@ -243,10 +241,7 @@ def _shafts_speedup(params: dict, device: str, quick: bool) -> dict:
     times = {1: [], m: []}
     for _ in range(2 if quick else 5):
         for k, r in rs.items():
-            t = time.perf_counter()
-            r.technique._march()
-            wp.synchronize_device(r.technique.device)
-            times[k].append((time.perf_counter() - t) * 1000.0)
+            times[k].append(r.run_stage("march"))
     ms = {k: {"min": min(v), "median": statistics.median(v)} for k, v in times.items()}
     speedup = ms[1]["min"] / ms[m]["min"]
     return {"first_frame_ms": first, "median_ms": ms[m]["median"], "frames": len(times[m]),
@@ -383,7 +378,7 @@ def _rbf_accuracy(params: dict, device: str, quick: bool) -> dict:
 SUN2 = {"type": "directional", "direction": [0.6, 0.8, -0.3], "irradiance": 1.5}  # the paper's second, bottom-right
 
 
-def _network_scene(quick: bool, n: int = 1024, width: int = 512, albedo: float = 0.9, sky: bool = True,
+def network_scene(quick: bool, n: int = 1024, width: int = 512, albedo: float = 0.9, sky: bool = True,
                    seed: int = 1):
     """particle-cloud as in the paper's results: ``n`` particles (radius scaled by n^(-1/3)
     so the cloud's volume stays put), albedo 0.9, g = 0, 2 R tau = 20 expected collisions
@@ -447,7 +442,7 @@ def _network_frame(params: dict, device: str, quick: bool) -> dict:
     import warp as wp
 
     n, D = params["particles"], params["directions"]
-    scene = _network_scene(quick, n, params.get("width", 512))
+    scene = network_scene(quick, n, params.get("width", 512))
     r = wv.Renderer(scene, technique="illumination_network", device=device, directions=D,
                     window=params.get("window", 0), iterations=1, tolerance=0.0)
     row = time_frames(r, repeats=2 if quick else 10, invalidate=("camera", "lights"))
@@ -496,7 +491,7 @@ def _convergence(params: dict, device: str, quick: bool) -> dict:
     import numpy as np
 
     iters = 20 if quick else 300
-    scene = _network_scene(quick, 1024, 256, albedo=params["albedo"])
+    scene = network_scene(quick, 1024, 256, albedo=params["albedo"])
     r = wv.Renderer(scene, technique="illumination_network", device=device, iterations=0,
                     window=params.get("window", 0))
     r.render()
@@ -533,7 +528,7 @@ def _network_accuracy(params: dict, device: str, quick: bool) -> dict:
     """The converged image against the multiple-scattering reference on the same particles
     (48x48 at pixel centres), the window from the paper's rule (window = 0) or given."""
     w = 24 if quick else 48
-    scene = _network_scene(quick, params["particles"], w)
+    scene = network_scene(quick, params["particles"], w)
     r = wv.Renderer(scene, technique="illumination_network", device=device, iterations=2000, tolerance=1e-5,
                     directions=params["directions"], window=params["window"])
     row = time_frames(r, repeats=1 if quick else 2, invalidate=("lights",))
@@ -559,15 +554,13 @@ def _albedo_bound(params: dict, device: str, quick: bool) -> dict:
     RMSE of the single-scattering image (iterations = 0) against the reference with one
     scattering event, the total is the converged image's RMSE against the unlimited one."""
     w, spp = (24, 16) if quick else (32, 256)
-    scene = _network_scene(quick, 256, w, albedo=params["albedo"], sky=False)
-    import numpy as np
-
+    scene = network_scene(quick, 256, w, albedo=params["albedo"], sky=False)
     out = {}
     for bounces, settings in ((1, {"iterations": 0}), (-1, {"iterations": 3000, "tolerance": 1e-6})):
         r = wv.Renderer(scene, technique="illumination_network", device=device, directions=128, **settings)
         image = r.render().image
         ref, floor = reference_image(scene, device, spp=spp, max_bounces=bounces, pixel_area=0)
-        out[bounces] = (float(np.sqrt(np.mean((image - ref) ** 2))), float(np.sqrt(np.mean(ref**2))), floor)
+        out[bounces] = (wv.rmse(image, ref), wv.rmse(ref, 0.0), floor)
     eps, total = out[1][0], out[-1][0]
     a = params["albedo"]
     return untimed_row(1, eps_rmse=eps, total_rmse=total, bound=eps / (1 - a), holds=bool(total <= eps / (1 - a)),
@@ -603,7 +596,7 @@ def _animated(params: dict, device: str, quick: bool) -> dict:
     import numpy as np
 
     frames = 6 if quick else 48
-    scene = _network_scene(quick, 1024, 128)
+    scene = network_scene(quick, 1024, 128)
     base = scene.media[0]
     runs = {}
     for k in sorted({0, params["refresh"]}):
@@ -703,6 +696,4 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
     Sweep("illumination-network-albedo", "papers/000's bound: the error of one step eps grows to at most "
           "eps / (1 - a); single- and multiple-scattering RMSE against the reference at albedo 0.5, 0.8, 0.95",
           "illumination_network", "bound", _albedo_grid, _albedo_bound, issue=6),
-    Sweep("depth-impostors", "papers/004: 8000 particles, blocks 0..1600",
-          "depth_impostors", "paper", paper=("depth_impostors",), figure=_row_fps),
 ]}

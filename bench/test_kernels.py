@@ -28,9 +28,9 @@ def test_illumination_network_iteration(benchmark, particles, directions):
     """One iteration of papers/000's update (S = I P, then the gather), the paper's cloud."""
     import warp as wp
 
-    from bench.sweeps import _network_scene
+    from warpvol.bench.sweeps import network_scene
 
-    r = wv.Renderer(_network_scene(False, particles, 64), technique="illumination_network", directions=directions,
+    r = wv.Renderer(network_scene(False, particles, 64), technique="illumination_network", directions=directions,
                     iterations=0)
     r.render()
     t = r.technique
@@ -44,9 +44,9 @@ def test_illumination_network_iteration(benchmark, particles, directions):
 
 def test_illumination_network_build(benchmark):
     """The visibility network for 1024 particles, 128 directions, a 128 x 128 window."""
-    from bench.sweeps import _network_scene
+    from warpvol.bench.sweeps import network_scene
 
-    r = wv.Renderer(_network_scene(False, 1024, 64), technique="illumination_network", window=128, iterations=0)
+    r = wv.Renderer(network_scene(False, 1024, 64), technique="illumination_network", window=128, iterations=0)
     r.render()
 
     def build():
@@ -60,17 +60,13 @@ def test_illumination_network_build(benchmark):
 def test_light_shafts_passes(benchmark, stage, raster):
     """papers/001's shadow-map pass and visible-surface pass on colonnade-shafts (65 660 triangles,
     800x600, 256^2 cube map): rasterised (raster = 1) against BVH ray casts (raster = 0)."""
-    import warp as wp
+    from warpvol.bench.sweeps import shafts_scene
 
-    from bench.sweeps import _shafts_scene
-
-    r = wv.Renderer(_shafts_scene(False), technique="light_shafts", raster=raster)
+    r = wv.Renderer(shafts_scene(False), technique="light_shafts", raster=raster)
     r.render()
-    run = getattr(r.technique, "_" + stage)
 
     def once():
-        run()
-        wp.synchronize_device(r.technique.device)
+        r.run_stage(stage)
 
     benchmark.pedantic(once, rounds=5, iterations=1, warmup_rounds=1)
 
@@ -78,15 +74,12 @@ def test_light_shafts_passes(benchmark, stage, raster):
 @pytest.mark.parametrize("block", [1, 4])
 def test_light_shafts_march(benchmark, block):
     """The march at N = 64 with and without M x M interleaving (the issue's 0.7 M^2 target)."""
-    import warp as wp
+    from warpvol.bench.sweeps import shafts_scene
 
-    from bench.sweeps import _shafts_scene
-
-    r = wv.Renderer(_shafts_scene(False), technique="light_shafts", steps=64, block=block)
+    r = wv.Renderer(shafts_scene(False), technique="light_shafts", steps=64, block=block)
     r.render()
 
     def once():
-        r.technique._march()
-        wp.synchronize_device(r.technique.device)
+        r.run_stage("march")
 
     benchmark.pedantic(once, rounds=3 if block == 1 else 10, iterations=1, warmup_rounds=1)

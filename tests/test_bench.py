@@ -5,9 +5,9 @@ import json
 
 import pytest
 
-from bench.harness import digest, load_rows, write_rows
-from bench.report import pareto_front, paper_section
-from bench.sweeps import SWEEPS
+from warpvol.bench.harness import digest, load_rows, write_rows
+from warpvol.bench.report import pareto_front, paper_section
+from warpvol.bench.sweeps import SWEEPS, Sweep
 from warpvol.cli import main
 
 ROW_FIELDS = {"sweep", "technique", "params", "device", "warp", "commit", "median_ms", "spread_ms", "stages",
@@ -55,7 +55,9 @@ def test_interrupted_sweep_keeps_its_rows_and_measures_the_rest(out):
     assert cached["overhead_us"] > 0 and all(s["status"] == "cached" for s in cached["stages"].values())
 
 
-def test_sweeps_waiting_for_a_technique_say_so(out, capsys):
+def test_sweeps_waiting_for_a_technique_say_so(out, capsys, monkeypatch):
+    # a paper's sweep lands before its technique (papers/004 here)
+    monkeypatch.setitem(SWEEPS, "depth-impostors", Sweep("depth-impostors", "papers/004", "depth_impostors", "paper"))
     assert main(["bench", "--list"]) == 0
     listing = capsys.readouterr().out
     assert "raymarch-accuracy" in listing and "waits for depth_impostors (no issue yet)" in listing

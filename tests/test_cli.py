@@ -1,5 +1,6 @@
 """The command line and image files, as a user runs them."""
 
+import re
 import subprocess
 import sys
 
@@ -54,3 +55,16 @@ def test_device_pick(monkeypatch):
     assert dev.pick() in dev.available()
     with pytest.raises(dev.DeviceError, match="allowed: cpu"):
         dev.pick("tpu")
+
+
+def test_a_command_prints_its_own_line_and_nothing_else(tmp_path):
+    """No Warp banner, no "Module ... load" lines, no CUDA-driver warning: those need --verbose."""
+    out = tmp_path / "X.png"
+    r = subprocess.run([sys.executable, "-m", "warpvol", "render", "fog-box", "--technique", "raymarch",
+                        "--set", "camera.width=8", "--set", "camera.height=6", "--out", str(out)],
+                       stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    assert r.returncode == 0, r.stdout
+    assert re.fullmatch(rf"fog-box: raymarch on \S+, 8x6, \d+\.\d\d s -> {re.escape(str(out))}\n", r.stdout), r.stdout
+    verbose = run("render", "fog-box", "--technique", "raymarch", "--set", "camera.width=8", "--set", "camera.height=6",
+                  "--out", str(out), "--verbose")
+    assert verbose.returncode == 0 and "Warp" in verbose.stdout + verbose.stderr

@@ -16,16 +16,6 @@ from warpvol.scene import to_mitsuba
 
 mi = pytest.importorskip("mitsuba")
 
-LAMP = {
-    "name": "lamp-outside",
-    "camera": {"origin": [0, 0.3, 3.5], "target": [0, 0, 0], "fov_y": 45, "width": 32, "height": 24},
-    "lights": [{"type": "point", "position": [1.6, 1.4, 1.0], "intensity": [12, 10, 8]}],
-    "media": [{"type": "homogeneous", "shape": "box", "size": [1.6, 1.2, 1.2], "sigma_t": 1.5, "albedo": [0.9, 0.8, 0.6],
-               "phase": {"type": "hg", "g": 0.4}}],
-    "surfaces": [{"type": "plane", "center": [0, -0.7, 0], "normal": [0, 1, 0], "size": [6, 6], "diffuse": 0.6},
-                 {"type": "sphere", "center": [1.2, -0.35, 0.5], "radius": 0.3, "diffuse": [0.2, 0.5, 0.8]}],
-}
-
 CASES = [
     ("sunlit-haze", ["camera.width=32", "camera.height=24"], -1),  # directional, RGB sigma_t, sphere, multiple
     ("lamp-outside", [], 1),  # point light, box medium, occluders, single scattering
@@ -46,7 +36,7 @@ BALL = {
 def load(name, overrides):
     import os
 
-    source = {"lamp-outside": LAMP, "rayleigh-ball": BALL}.get(name)
+    source = {"rayleigh-ball": BALL}.get(name)
     if source is None:
         source = os.path.join(os.path.dirname(__file__), "..", "scenes", f"{name}.toml")
     return wv.load_scene(source, overrides)

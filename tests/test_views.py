@@ -6,7 +6,7 @@ import pytest
 
 import pyvista as pv
 
-import viz
+from warpvol import viz
 import warpvol as wv
 from warpvol.scene.procedural import BUILTIN
 
@@ -68,8 +68,6 @@ def test_network_and_particles_and_slices():
     assert viz.network_mesh(pos, visible, 0).n_lines == 0
     spheres = viz.particles_mesh(pos, 0.05, scalars=rng.random((10, 3)))
     assert spheres.n_points > 10 * 20
-    slices = viz.impostor_slices(rng.random((5, 8, 8, 4)), (0, 0, 0), (1, 1, 1))
-    assert slices.dimensions == (8, 8, 5)
 
 
 def test_a_volume_plot_is_not_blank():

@@ -3,7 +3,7 @@
     python -m warpvol view SCENE [--screenshot out.png]
 
 Functions that turn arrays into pyvista meshes (``volume_grid``, ``lattice_grid``,
-``particles_mesh``, ``network_mesh``, ``impostor_slices``, ``light_glyphs``,
+``particles_mesh``, ``network_mesh``, ``light_glyphs``,
 ``camera_frustum``, ``depth_surface``, ``slice_plane``), ``technique_actors`` for what
 ``Renderer.arrays()`` exposes, and one that assembles a whole scene (``scene_plotter``). Techniques
 add their own views here as they land. Uses only warpvol's public API.
@@ -12,7 +12,6 @@ add their own views here as they land. Uses only warpvol's public API.
 from .views import (
     camera_frustum,
     depth_surface,
-    impostor_slices,
     lattice_grid,
     light_glyphs,
     network_mesh,
@@ -25,6 +24,6 @@ from .views import (
 )
 
 __all__ = [
-    "camera_frustum", "depth_surface", "impostor_slices", "lattice_grid", "light_glyphs", "network_mesh", "particles_mesh",
+    "camera_frustum", "depth_surface", "lattice_grid", "light_glyphs", "network_mesh", "particles_mesh",
     "scene_plotter", "slice_plane", "surfaces_mesh", "technique_actors", "volume_grid",
 ]

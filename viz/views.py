@@ -87,18 +87,6 @@ def network_mesh(positions, visible, direction: int, alpha=None) -> pv.PolyData:
     return mesh
 
 
-def impostor_slices(slices, bounds_min, bounds_max, name: str = "rgba") -> pv.ImageData:
-    """A stack of K RGBA impostor slices (K, H, W, 4) as a node-centred volume with RGBA point data."""
-    s = np.asarray(slices, np.float32)
-    k, h, w, _ = s.shape
-    lo, hi = np.asarray(bounds_min, float), np.asarray(bounds_max, float)
-    spacing = tuple((hi - lo) / np.maximum(np.array((w, h, k)) - 1, 1))
-    grid = pv.ImageData(dimensions=(w, h, k), spacing=spacing, origin=tuple(lo))
-    grid.point_data[name] = (np.clip(s, 0, 1) * 255).astype(np.uint8).reshape(-1, 4)
-    grid.point_data["alpha"] = s[..., 3].ravel()
-    return grid
-
-
 def surfaces_mesh(scene) -> pv.PolyData | None:
     """The scene's surfaces as one triangle mesh with per-face diffuse colour (``diffuse``)."""
     verts, faces, colours, base = [], [], [], 0

@@ -102,6 +102,12 @@ class Renderer:
         shadow-map depth surfaces and lit slice; {} for techniques with none to show."""
         return self._technique.arrays(**options)
 
+    def run_stage(self, name: str) -> float:
+        """Run one stage of the technique again after a ``render()``, with its inputs as the last
+        frame left them, and return its device-synchronised time in ms: how benchmarks time one
+        pass (e.g. light_shafts' ``march``) apart from the frame. The frame's cache is unchanged."""
+        return self._pipeline.run_stage(name)
+
     def render(self) -> Frame:
         """Run the stages the scene calls for and the changes invalidated; return the Frame."""
         t = self._technique

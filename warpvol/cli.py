@@ -6,6 +6,9 @@
     python -m warpvol view SCENE [--screenshot FILE.png] [--technique NAME] [--set key=value ...]
     python -m warpvol scenes
 
+Each command prints its own lines and nothing else; ``--verbose`` also shows Warp's (its
+banner, module loads, a missing CUDA driver) and VTK's warnings.
+
 ``--set`` takes a technique setting (``--set steps=128``) or a scene key in dotted form
 (``--set camera.width=64``, ``--set media.0.sigma_t=2``). Bad input exits with status 2
 and one line on stderr.
@@ -100,9 +103,9 @@ def cmd_render(args) -> int:
 def cmd_bench(args) -> int:
     import os
 
-    from bench.harness import run_sweep
-    from bench.report import write_report
-    from bench.sweeps import SWEEPS
+    from warpvol.bench.harness import run_sweep
+    from warpvol.bench.report import write_report
+    from warpvol.bench.sweeps import SWEEPS
 
     from warpvol import device as dev
 
@@ -133,8 +136,12 @@ def cmd_bench(args) -> int:
 
 def cmd_view(args) -> int:
     import warpvol as wv
-    from viz import scene_plotter
+    from warpvol.viz import scene_plotter
 
+    if not args.verbose:  # e.g. "bad X server connection" when rendering off screen
+        from vtkmodules.vtkCommonCore import vtkObject
+
+        vtkObject.GlobalWarningDisplayOff()
     scene = wv.load_scene(args.scene, args.set or [])
     plotter = scene_plotter(scene, off_screen=args.screenshot is not None)
     if args.technique:
@@ -161,11 +168,16 @@ def cmd_scenes(args) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from warpvol import device
+    from warpvol.api import technique_names
+
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--verbose", action="store_true", help="also show Warp's and VTK's own messages")
     parser = _Parser(prog="python -m warpvol", description="Participating media with NVIDIA Warp.")
     sub = parser.add_subparsers(dest="command", required=True)
-    r = sub.add_parser("render", help="render a scene file or a built-in scene to .exr / .png / .npy")
+    r = sub.add_parser("render", parents=[common], help="render a scene file or a built-in scene to .exr / .png / .npy")
     r.add_argument("scene", help="a .toml scene file or a built-in scene name (see `scenes`)")
-    r.add_argument("--technique", default="reference", help="reference | raymarch | light_shafts | rbf_propagation | illumination_network (default: reference)")
+    r.add_argument("--technique", default="reference", help=f"{' | '.join(technique_names())} (default: reference)")
     r.add_argument("--out", action="append", required=True, help="output image; repeat for several (.exr .png .npy)")
     r.add_argument("--device", default=None, help="cpu | cuda | cuda:N (default: $WARPVOL_DEVICE, else CUDA if present)")
     r.add_argument("--spp", type=_integer, default=None, help="samples per pixel (reference)")
@@ -173,14 +185,14 @@ def main(argv: list[str] | None = None) -> int:
     r.add_argument("--exposure", type=_finite_float, default=0.0, help="PNG exposure in stops (default 0)")
     r.add_argument("--timings", action="store_true", help="print per-stage times")
     r.set_defaults(func=cmd_render)
-    b = sub.add_parser("bench", help="run a benchmark sweep, list them, or write their reports")
+    b = sub.add_parser("bench", parents=[common], help="run a benchmark sweep, list them, or write their reports")
     b.add_argument("sweep", nargs="*", help="sweep names, or `report [SWEEP ...]` (see --list)")
     b.add_argument("--list", action="store_true", help="list the sweeps and whether they can run yet")
     b.add_argument("--quick", action="store_true", help="a reduced sweep that finishes in seconds")
     b.add_argument("--device", default=None, help="cpu | cuda | cuda:N (default: $WARPVOL_DEVICE, else CUDA if present)")
     b.add_argument("--out", default="results", help="results folder (default: results)")
     b.set_defaults(func=cmd_bench)
-    v = sub.add_parser("view", help="look at a scene in pyvista: media, lights, surfaces, camera")
+    v = sub.add_parser("view", parents=[common], help="look at a scene in pyvista: media, lights, surfaces, camera")
     v.add_argument("scene", help="a .toml scene file or a built-in scene name")
     v.add_argument("--screenshot", default=None, help="render off screen to this PNG instead of opening a window")
     v.add_argument("--set", action="append", metavar="KEY=VALUE", help="scene key override")
@@ -188,9 +200,10 @@ def main(argv: list[str] | None = None) -> int:
                    "(light_shafts: shadow-map depth surfaces, lit slice; rbf_propagation: OPV error per cell)")
     v.add_argument("--device", default=None, help="cpu | cuda (for --technique)")
     v.set_defaults(func=cmd_view)
-    s = sub.add_parser("scenes", help="list the built-in scenes")
+    s = sub.add_parser("scenes", parents=[common], help="list the built-in scenes")
     s.set_defaults(func=cmd_scenes)
     args = parser.parse_args(argv)
+    device.set_verbose(args.verbose)
     from warpvol.device import DeviceError
     from warpvol.pipeline import SettingsError
     from warpvol.scene import SceneError

@@ -1,5 +1,10 @@
 """One place that initialises Warp, picks the device and launches kernels.
 
+Warp's own output (its init banner and "Module ... load on device" lines, log level INFO,
+and the native "Could not find or load the NVIDIA CUDA driver" warning on machines without
+a GPU driver) is off unless ``set_verbose(True)`` (``python -m warpvol ... --verbose``): a
+command prints its own lines and nothing else.
+
 ``pick(None)`` is "cuda" when a CUDA device is present, else "cpu"; the environment
 variable WARPVOL_DEVICE overrides it. Warp runs a CPU launch on one thread, so
 ``launch`` splits a CPU launch into one index range per core and runs them from a thread
@@ -8,7 +13,9 @@ pool (a launch releases the GIL); each kernel takes the range start as its first
 
 from __future__ import annotations
 
+import contextlib
 import os
+import sys
 import threading
 from concurrent.futures import ThreadPoolExecutor
 
@@ -22,9 +29,39 @@ class DeviceError(ValueError):
 _pool: ThreadPoolExecutor | None = None
 
 
+_verbose = False
+_initialised = False
+
+
+def set_verbose(verbose: bool) -> None:
+    """Show Warp's own output (banner, module loads, CUDA-driver warning) or not (the default)."""
+    global _verbose
+    _verbose = verbose
+    wp.config.log_level = wp.LOG_INFO if verbose else wp.LOG_WARNING
+
+
+@contextlib.contextmanager
+def _native_stderr_dropped():
+    """Send what native code writes to file descriptor 2 to /dev/null while the block runs."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
 def init():
-    wp.config.quiet = True
-    wp.init()  # returns at once after the first call
+    """Initialise Warp once; unless verbose, without the CUDA-driver warning its native code
+    prints straight to stderr on a machine with no GPU driver."""
+    global _initialised
+    if not _initialised:
+        with contextlib.nullcontext() if _verbose else _native_stderr_dropped():
+            wp.init()
+        _initialised = True
 
 
 def available() -> list[str]:

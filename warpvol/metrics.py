@@ -10,4 +10,5 @@ def relative_rmse(image: np.ndarray, reference: np.ndarray, eps: float = 1e-2) -
 
 
 def rmse(image: np.ndarray, reference: np.ndarray) -> float:
+    """sqrt(mean((x - r)^2)), in the images' units; ``reference`` may be a scalar (0: the RMS)."""
     return float(np.sqrt(np.mean((np.asarray(image, np.float64) - np.asarray(reference, np.float64)) ** 2)))

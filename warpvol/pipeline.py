@@ -226,3 +226,14 @@ class Pipeline:
             keys[stage.name] = key
             runs[stage.name] += 1
         return out
+
+    def run_stage(self, name: str) -> float:
+        """Run one stage now, on the outputs the last frame left, and return its
+        device-synchronised time in ms. What the frame cached is left as it is."""
+        stages = {s.name: s for s in self.technique.stages()}
+        if name not in stages:
+            raise ValueError(f"{self.technique.NAME}: no stage {name!r} (allowed: {', '.join(stages)})")
+        t0 = time.perf_counter()
+        stages[name].run()
+        wp.synchronize_device(self.technique.device)
+        return (time.perf_counter() - t0) * 1000.0
