@@ -193,7 +193,7 @@ def _shafts_edges(params: dict, device: str, quick: bool) -> dict:
     scene = shafts_scene(quick)
     full_r = wv.Renderer(scene, technique="light_shafts", device=device, steps=64, block=1, jitter=0)
     full = full_r.render().image
-    depth = np.minimum(full_r.arrays(slice_res=2)["depth"], 1e3)
+    depth = np.minimum(full_r.arrays(resolution=2)["depth"], 1e3)
     jump = np.zeros(depth.shape, bool)
     for axis in (0, 1):
         d = np.abs(np.diff(depth, axis=axis)) > 0.1 * np.minimum(depth[:-1] if axis == 0 else depth[:, :-1],
@@ -324,7 +324,7 @@ def _rules(params: dict, device: str, quick: bool) -> dict:
     scene = wv.load_scene("rbf-cornell", ["camera.width=8", "camera.height=6"])
     r = wv.Renderer(scene, technique="rbf_propagation", device=device, **params)
     row = time_frames(r, repeats=1 if quick else 3, invalidate=("lights",))
-    a = r.arrays(exact=True)
+    a = r.arrays(for_view=True)
     err = np.abs(a["optical_depth"] - a["optical_depth_exact"])[..., 0]
     exact = a["optical_depth_exact"][..., 0]
     row.update(mean_abs_error=float(err.mean()), mean_exact=float(exact.mean()),

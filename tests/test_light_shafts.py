@@ -120,7 +120,7 @@ def raster_and_ray_cast(scene, device, res):
         r = wv.Renderer(scene, technique="light_shafts", device=device, raster=raster, shadow_map_res=res,
                         steps=32, block=2)
         img = r.render().image
-        a = r.arrays(slice_res=2)
+        a = r.arrays(resolution=2)
         out.append((img, a["depth"], np.concatenate(a["shadow_distance"])))
     return out
 
@@ -163,7 +163,7 @@ def test_tiled_rasterising_equals_one_thread_per_triangle(scene, device):
         r = wv.Renderer(d, technique="light_shafts", device=device, raster_tiles=tiles, shadow_map_res=96, steps=32,
                         block=2)
         img = r.render().image
-        a = r.arrays(slice_res=2)
+        a = r.arrays(resolution=2)
         out.append((img, a["depth"], np.concatenate(a["shadow_distance"])))
     for x, y in zip(*out):
         assert np.array_equal(x, y)
@@ -219,7 +219,7 @@ def test_depth_aware_block_sum_removes_the_halo(device):
     full = shafts(scene, device, steps=64, block=1, jitter=0).image
     r = wv.Renderer(scene, technique="light_shafts", device=device, steps=64, block=4, jitter=0)
     plain = r.render().image
-    depth = r.arrays(slice_res=2)["depth"]
+    depth = r.arrays(resolution=2)["depth"]
     aware = shafts(scene, device, steps=64, block=4, jitter=0, edges=1).image
     smooth = window_all_similar(depth, 4, 0.1)
     assert 0.02 < (~smooth).mean() < 0.5  # the pillar's and floor's edges

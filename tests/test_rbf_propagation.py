@@ -87,7 +87,7 @@ def test_corrected_rule_converges_to_the_marched_optical_depth():
     roughly halves the mean error against optical depth marched from each centre to the light."""
     errs = []
     for n in (10, 20):
-        a = renderer(rbf_cornell(), grid=n).arrays(exact=True)
+        a = renderer(rbf_cornell(), grid=n).arrays(for_view=True)
         exact = a["optical_depth_exact"]
         errs.append(np.abs(a["optical_depth"] - exact).mean() / exact.mean())
     assert errs[1] < 0.75 * errs[0], errs

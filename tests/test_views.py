@@ -84,7 +84,7 @@ def test_light_shafts_arrays_and_their_view():
 
     r = wv.Renderer(pillar_scene(width=32, height=24), technique="light_shafts", device="cpu", shadow_map_res=32)
     r.render()
-    arrays = r.arrays(slice_res=24)
+    arrays = r.arrays(resolution=24)
     (pts,) = arrays["shadow_points"]  # one point light: a cube map
     assert pts.shape == (6 * 32 * 32, 3)
     hit = np.all(np.abs(pts) < 1e29, axis=1)
@@ -95,7 +95,7 @@ def test_light_shafts_arrays_and_their_view():
     lit = arrays["lit_slice"]
     assert lit.shape == (24, 24, 3) and np.isfinite(lit).all() and lit.max() > 0
     p = pv.Plotter(off_screen=True, window_size=(200, 150))
-    viz.technique_actors(p, arrays)
+    viz.technique_actors(p, "light_shafts", arrays)
     img = p.screenshot(return_img=True)
     p.close()
     assert not_blank(img) > 0.02
@@ -114,7 +114,7 @@ def test_illumination_network_view():
     edges = viz.network_mesh(arrays["positions"], arrays["visibility"], d, arrays["alpha"][..., 0])
     assert edges.n_cells == int((arrays["visibility"][:, d] >= 0).sum()) > 0
     p = pv.Plotter(off_screen=True, window_size=(200, 150))
-    viz.technique_actors(p, arrays)
+    viz.technique_actors(p, "illumination_network", arrays)
     img = p.screenshot(return_img=True)
     p.close()
     assert not_blank(img) > 0.02

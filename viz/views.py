@@ -218,13 +218,30 @@ def slice_plane(values, corners, name: str = "radiance") -> pv.StructuredGrid:
     return grid
 
 
-def technique_actors(plotter: pv.Plotter, arrays: dict) -> pv.Plotter:
-    """Add what a technique exposes through ``Renderer.arrays()`` to a plotter."""
+def technique_actors(plotter: pv.Plotter, technique: str, arrays: dict) -> pv.Plotter:
+    """Add what ``technique`` exposes through ``Renderer.arrays(for_view=True)`` to a plotter
+    (nothing for a technique without a view here)."""
+    view = _TECHNIQUE_VIEWS.get(technique)
+    if view is not None:
+        view(plotter, arrays)
+    return plotter
+
+
+def _light_shafts_actors(plotter: pv.Plotter, arrays: dict) -> None:
+    """Each light's shadow-map depth surface, and the lit slice through the camera's target."""
     for i, pts in enumerate(arrays.get("shadow_points", [])):
         cloud = depth_surface(pts, arrays["shadow_distance"][i])
         if cloud.n_points:
             plotter.add_mesh(cloud, scalars="distance", cmap="viridis", point_size=2, show_scalar_bar=False)
-    if "optical_depth_exact" in arrays:  # rbf_propagation: |OPV - marched| per cell, first light
+    if "lit_slice" in arrays:
+        grid = slice_plane(arrays["lit_slice"], arrays["lit_slice_corners"])
+        plotter.add_mesh(grid, scalars="radiance", cmap="inferno", opacity=0.85, show_scalar_bar=False,
+                         log_scale=False)
+
+
+def _rbf_propagation_actors(plotter: pv.Plotter, arrays: dict) -> None:
+    """|OPV - marched| per cell for the first light; the extinction when there is no light."""
+    if "optical_depth_exact" in arrays:
         err = np.abs(arrays["optical_depth"][0] - arrays["optical_depth_exact"][0])[..., 0]
         grid = volume_grid(err, *arrays["bounds"], name="optical depth error")
         plotter.add_volume(grid, scalars="optical depth error", cmap="magma", opacity="linear",
@@ -232,20 +249,22 @@ def technique_actors(plotter: pv.Plotter, arrays: dict) -> pv.Plotter:
     elif "extinction" in arrays:
         plotter.add_volume(volume_grid(arrays["extinction"], *arrays["bounds"]), scalars="sigma_t", cmap="bone",
                            opacity="sigmoid", show_scalar_bar=False)
-    if "visibility" in arrays:  # illumination_network: particles by radiance, one direction's edges
-        pos = arrays["positions"]
-        cloud = pv.PolyData(np.asarray(pos, np.float32))
-        out = arrays.get("outgoing")
-        radiance = arrays["radiance"].mean(axis=1) if out is None else out
-        cloud.point_data["radiance"] = np.asarray(radiance, np.float32) @ np.float32([0.2126, 0.7152, 0.0722])
-        plotter.add_mesh(cloud, scalars="radiance", cmap="inferno", render_points_as_spheres=True, point_size=9,
-                         show_scalar_bar=True)
-        d = arrays.get("view_direction", 0)
-        edges = network_mesh(pos, arrays["visibility"], d, arrays["alpha"][..., 0])
-        if edges.n_cells:
-            plotter.add_mesh(edges, scalars="alpha", cmap="viridis", line_width=2, show_scalar_bar=False)
-    if "lit_slice" in arrays:
-        grid = slice_plane(arrays["lit_slice"], arrays["lit_slice_corners"])
-        plotter.add_mesh(grid, scalars="radiance", cmap="inferno", opacity=0.85, show_scalar_bar=False,
-                         log_scale=False)
-    return plotter
+
+
+def _illumination_network_actors(plotter: pv.Plotter, arrays: dict) -> None:
+    """Particles by radiance, and the edges of one direction of the network."""
+    pos = arrays["positions"]
+    cloud = pv.PolyData(np.asarray(pos, np.float32))
+    out = arrays.get("outgoing")
+    radiance = arrays["radiance"].mean(axis=1) if out is None else out
+    cloud.point_data["radiance"] = np.asarray(radiance, np.float32) @ np.float32([0.2126, 0.7152, 0.0722])
+    plotter.add_mesh(cloud, scalars="radiance", cmap="inferno", render_points_as_spheres=True, point_size=9,
+                     show_scalar_bar=True)
+    d = arrays.get("view_direction", 0)
+    edges = network_mesh(pos, arrays["visibility"], d, arrays["alpha"][..., 0])
+    if edges.n_cells:
+        plotter.add_mesh(edges, scalars="alpha", cmap="viridis", line_width=2, show_scalar_bar=False)
+
+
+_TECHNIQUE_VIEWS = {"light_shafts": _light_shafts_actors, "rbf_propagation": _rbf_propagation_actors,
+                    "illumination_network": _illumination_network_actors}

@@ -97,10 +97,11 @@ class Renderer:
         to time a full frame."""
         self._pipeline.changed(*(parts or PARTS))
 
-    def arrays(self, **options) -> dict:
+    def arrays(self, for_view: bool = False, resolution: int = 128) -> dict:
         """The technique's intermediate arrays after the last frame (numpy), e.g. light_shafts'
-        shadow-map depth surfaces and lit slice; {} for techniques with none to show."""
-        return self._technique.arrays(**options)
+        shadow-map depth surfaces and lit slice; {} for techniques with none to show.
+        ``for_view`` and ``resolution``: see ``Technique.arrays``."""
+        return self._technique.arrays(for_view=for_view, resolution=resolution)
 
     def run_stage(self, name: str) -> float:
         """Run one stage of the technique again after a ``render()``, with its inputs as the last

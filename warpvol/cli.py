@@ -149,7 +149,7 @@ def cmd_view(args) -> int:
 
         renderer = wv.Renderer(scene, technique=args.technique, device=args.device)
         renderer.render()
-        technique_actors(plotter, renderer.arrays(for_view=True))
+        technique_actors(plotter, args.technique, renderer.arrays(for_view=True))
     if args.screenshot:
         plotter.screenshot(args.screenshot)
         plotter.close()

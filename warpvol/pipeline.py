@@ -113,9 +113,12 @@ class Technique:
     def output(self):
         raise NotImplementedError
 
-    def arrays(self, for_view: bool = False) -> dict:
-        """Intermediate arrays of the last frame, as numpy, for looking inside (``viz``);
-        ``for_view`` adds what a picture needs beyond the frame's own arrays."""
+    def arrays(self, for_view: bool = False, resolution: int = 128) -> dict:
+        """Intermediate arrays of the last frame, as numpy, for looking inside (``viz``).
+
+        ``for_view`` adds what a picture needs beyond the frame's own arrays, however costly
+        (rbf_propagation's marched optical depth); ``resolution`` is the side of arrays sampled
+        only to be looked at (light_shafts' lit slice). Every technique takes both."""
         return {}
 
 

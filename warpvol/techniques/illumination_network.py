@@ -860,12 +860,13 @@ class IlluminationNetwork(Technique):
         host[: 3 * n, :D] = np.moveaxis(np.asarray(radiance, np.float32), -1, 1).reshape(3 * n, D) / self.scale
         self.I.assign(host)
 
-    def arrays(self, for_view: bool = False) -> dict:
+    def arrays(self, for_view: bool = False, resolution: int = 128) -> dict:
         """``positions`` (N, 3), ``directions`` (D, 3), ``visibility`` (N, D) int (-1: sky),
         ``alpha`` (N, D, 3) (vp's segment opacity), ``radiance`` (N, D, 3) (the network I),
         ``outgoing`` (N, 3) (toward the camera of the last frame), ``window`` M, ``bounds``
         (centre, R); ``for_view`` adds ``view_direction``, the sample direction nearest the
-        first light's travel direction (the one whose edges a view draws)."""
+        first light's travel direction (the one whose edges a view draws); ``resolution`` is
+        unused (every array is the network's own size)."""
         n, D = self._n, self.D
         extra = {}
         if for_view:

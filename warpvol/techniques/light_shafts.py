@@ -650,13 +650,13 @@ class LightShafts(Technique):
     def output(self):
         return self.image
 
-    def arrays(self, slice_res: int = 128, for_view: bool = False) -> dict:
+    def arrays(self, for_view: bool = False, resolution: int = 128) -> dict:
         """Intermediate arrays for looking inside (``viz``): ``depth``, the distance to the visible
         surface per pixel (H x W, INF where none); per light, the shadow map's depth
         surface as world points (``shadow_points``, (texels, 3), INF where a ray escaped) and
         its distances (``shadow_distance``); and ``lit_slice``, the in-scattered radiance toward
         the camera on the vertical plane through the camera's target facing the camera
-        ((slice_res, slice_res, 3), with the plane's ``lit_slice_corners``, 4 x 3)."""
+        ((resolution, resolution, 3), with the plane's ``lit_slice_corners``, 4 x 3)."""
         cam = self.scene.camera
         out = {"shadow_points": [], "shadow_distance": []}
         if self.scene.surfaces and self.t_hit is not None:
@@ -679,12 +679,12 @@ class LightShafts(Technique):
         up = np.asarray(cam.up, float) / np.linalg.norm(cam.up)
         corner = target - half * right - half * up
         edge_u, edge_v = 2 * half * right, 2 * half * up
-        lit = wp.empty(slice_res * slice_res, dtype=wp.vec3, device=self.device)
-        dev.launch(sample_lit_slice, slice_res * slice_res,
+        lit = wp.empty(resolution * resolution, dtype=wp.vec3, device=self.device)
+        dev.launch(sample_lit_slice, resolution * resolution,
                    [self.uploads.media.struct, self.uploads.lights, self.maps, self.depth, wp.vec3(*corner),
-                    wp.vec3(*edge_u), wp.vec3(*edge_v), slice_res, wp.vec3(*view), self.settings["shadow_steps"],
+                    wp.vec3(*edge_u), wp.vec3(*edge_v), resolution, wp.vec3(*view), self.settings["shadow_steps"],
                     lit], self.device)
-        out["lit_slice"] = lit.numpy().reshape(slice_res, slice_res, 3)
+        out["lit_slice"] = lit.numpy().reshape(resolution, resolution, 3)
         out["lit_slice_corners"] = np.array([corner, corner + edge_u, corner + edge_u + edge_v, corner + edge_v])
         return out
 

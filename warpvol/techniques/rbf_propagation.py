@@ -494,17 +494,16 @@ class RBFPropagation(Technique):
                    self.device)
         return out.numpy().reshape(len(self.scene.lights), n, n, n, 3)
 
-    def arrays(self, exact: bool = False, for_view: bool = False) -> dict:
+    def arrays(self, for_view: bool = False, resolution: int = 128) -> dict:
         """``extinction`` (n, n, n, 3) [z, y, x], ``optical_depth`` (lights, n, n, n, 3), the
-        volumes' ``bounds`` (lo, hi), and with ``exact`` (or ``for_view``) the marched
-        yardstick ``optical_depth_exact`` of the same shape."""
-        exact = exact or for_view
+        volumes' ``bounds`` (lo, hi), and with ``for_view`` the marched yardstick
+        ``optical_depth_exact`` of the same shape (``resolution`` is unused: the grid is the setting's)."""
         n = self.settings["grid"]
         out = {"bounds": (tuple(self.volume.lo), tuple(self.volume.hi)),
                "extinction": self.ev.numpy().reshape(n, n, n, 3)}
         if self.scene.lights and self.opv is not None and self.opv.shape[0] == len(self.scene.lights) * n**3:
             out["optical_depth"] = self.opv.numpy().reshape(len(self.scene.lights), n, n, n, 3)
-            if exact:
+            if for_view:
                 out["optical_depth_exact"] = self.exact_optical_depth()
         return out
 
