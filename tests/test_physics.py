@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import warp as wp
 
+from warpvol.geometry.intersect import sphere_chord
 from warpvol.physics import airlight, phase, sphere, transmittance
-from warpvol.media.particles import sphere_chord
 from warpvol.physics.lights import KINDS, Light, ball_mean_inverse_square, light_incident
 
 

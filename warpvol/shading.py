@@ -8,8 +8,9 @@ with ``march_steps`` midpoint steps over the heterogeneous part (homogeneous med
 
 import warp as wp
 
+from .geometry.intersect import ray_box
 from .geometry.mesh import Surfaces, occluded
-from .media.volume import Media, homogeneous_optical_depth, ray_box, sigma_t_at, transmittance_estimate
+from .media.volume import Media, homogeneous_optical_depth, sigma_t_at, transmittance_estimate
 from .physics.brdf import Material, brdf_eval
 from .physics.constants import RAY_EPS, STREAM
 from .physics.lights import Light, light_incident

@@ -15,16 +15,9 @@ class PinholeCamera:
     height: int
 
 
-@wp.func
-def camera_ray(cam: PinholeCamera, px: float, py: float) -> wp.vec3:
-    """Unit direction through image position (px, py) in pixels; row 0 is the top."""
-    sx = 2.0 * px / float(cam.width) - 1.0
-    sy = 1.0 - 2.0 * py / float(cam.height)
-    return wp.normalize(cam.forward + sx * cam.right + sy * cam.up)
-
-
 def camera_view(cam: PinholeCamera) -> RasterView:
-    """The camera's image as a raster view: pixel (i, j)'s ray is ``camera_ray`` at its centre."""
+    """The camera's image as a raster view (row 0 at the top): what kernels take, so that a
+    pixel's ray is ``view_ray`` / ``pixel_ray`` / ``view_ray_at`` (geometry/raster.py)."""
     v = RasterView()
     v.origin, v.fwd, v.right, v.up = cam.origin, cam.forward, cam.right, cam.up
     v.ortho, v.y_down, v.width, v.height, v.base = 0, 1, cam.width, cam.height, 0

@@ -24,9 +24,12 @@ minimum, so the result does not depend on the order in which triangles arrive.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import warp as wp
 
+from .. import device as dev
 from ..physics.constants import INF
 
 NEAR = wp.constant(1.0e-6)  # a perspective view clips triangles to depth > NEAR (scene units)
@@ -49,22 +52,42 @@ class RasterView:
 
 
 @wp.func
+def image_coords_at(v: RasterView, x: float, y: float):
+    """(sx, sy) in [-1, 1]^2 of image position (x, y) in pixels: pixel (i, j) covers
+    [i, i + 1) x [j, j + 1), its centre is (i + 1/2, j + 1/2)."""
+    sx = 2.0 * x / float(v.width) - 1.0
+    sy = 2.0 * y / float(v.height) - 1.0
+    if v.y_down == 1:
+        sy = 1.0 - 2.0 * y / float(v.height)
+    return sx, sy
+
+
+@wp.func
 def image_coords(v: RasterView, i: int, j: int):
     """(sx, sy) in [-1, 1]^2 of the centre of pixel (i, j)."""
-    sx = 2.0 * (float(i) + 0.5) / float(v.width) - 1.0
-    sy = 2.0 * (float(j) + 0.5) / float(v.height) - 1.0
-    if v.y_down == 1:
-        sy = 1.0 - 2.0 * (float(j) + 0.5) / float(v.height)
-    return sx, sy
+    return image_coords_at(v, float(i) + 0.5, float(j) + 0.5)
+
+
+@wp.func
+def view_ray_at(v: RasterView, x: float, y: float):
+    """(origin, unit direction) of the ray through image position (x, y) in pixels (sub-pixel
+    positions: jittered samples)."""
+    sx, sy = image_coords_at(v, x, y)
+    if v.ortho == 1:
+        return v.origin + sx * v.right + sy * v.up, v.fwd
+    return v.origin, wp.normalize(v.fwd + sx * v.right + sy * v.up)
 
 
 @wp.func
 def view_ray(v: RasterView, i: int, j: int):
     """(origin, unit direction) of the ray through the centre of pixel (i, j)."""
-    sx, sy = image_coords(v, i, j)
-    if v.ortho == 1:
-        return v.origin + sx * v.right + sy * v.up, v.fwd
-    return v.origin, wp.normalize(v.fwd + sx * v.right + sy * v.up)
+    return view_ray_at(v, float(i) + 0.5, float(j) + 0.5)
+
+
+@wp.func
+def pixel_ray(v: RasterView, p: int):
+    """``view_ray`` of pixel p = j width + i of the image (row by row)."""
+    return view_ray(v, p % v.width, p / v.width)
 
 
 @wp.func
@@ -281,6 +304,91 @@ def key_hit(key: wp.int64, points: wp.array(dtype=wp.vec3), indices: wp.array(dt
     a, b, c = triangle_at(points, indices, f)
     n = wp.normalize(wp.cross(b - a, c - a))
     return True, wp.dot(a - o, n) / wp.dot(d, n), n, f  # the ray meets the triangle's plane there
+
+
+@wp.kernel
+def raster_visible(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int), view: RasterView,
+                   t_scale: float, no_depth: wp.array(dtype=float), keys: wp.array(dtype=wp.int64)):
+    """One thread per triangle: (distance, triangle) keys of the nearest surface per pixel."""
+    f = wp.tid() + offset
+    a, b, c = triangle_at(points, indices, f)
+    raster_triangle(view, a, b, c, f, 1, t_scale, no_depth, keys)
+
+
+@wp.kernel
+def count_visible_tiles(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int),
+                        view: RasterView, counts: wp.array(dtype=int)):
+    f = wp.tid() + offset
+    a, b, c = triangle_at(points, indices, f)
+    counts[f] = triangle_tiles(view, a, b, c)
+
+
+@wp.kernel
+def raster_visible_tiles(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int),
+                         view: RasterView, starts: wp.array(dtype=int), t_scale: float,
+                         no_depth: wp.array(dtype=float), keys: wp.array(dtype=wp.int64)):
+    w = wp.tid() + offset
+    f = owner(starts, w)
+    a, b, c = triangle_at(points, indices, f)
+    raster_triangle_tile(view, a, b, c, f, w - starts[f], 1, t_scale, no_depth, keys)
+
+
+@wp.kernel
+def min_into(offset: int, src: wp.array(dtype=Any), dst: wp.array(dtype=Any)):
+    """dst = min(dst, src) elementwise: folds a private copy of a depth or key image into it."""
+    tid = wp.tid() + offset
+    dst[tid] = wp.min(dst[tid], src[tid])
+
+
+for _t in (wp.float32, wp.int64):  # declared before the module first loads: it compiles once
+    wp.overload(min_into, {"src": wp.array(dtype=_t), "dst": wp.array(dtype=_t)})
+
+
+def tile_starts(count_kernel, inputs: list, device: str):
+    """Pieces per triangle (``count_kernel(offset, points, indices, ..., counts)``), their
+    exclusive scan (where each triangle's pieces start) and the total, the one number read
+    back to size the launch. ``inputs`` begins with (points, indices)."""
+    ntri = inputs[1].shape[0] // 3
+    counts = wp.empty(ntri, dtype=int, device=device)
+    starts = wp.empty(ntri, dtype=int, device=device)
+    dev.launch(count_kernel, ntri, [*inputs, counts], device)
+    wp.utils.array_scan(counts, starts, inclusive=False)
+    last = np.concatenate([starts[ntri - 1:].numpy(), counts[ntri - 1:].numpy()])
+    return starts, int(last.sum())
+
+
+def rasterise_visible(points: wp.array, indices: wp.array, view: RasterView, t_far: float, keys: wp.array,
+                      tiled: bool, device: str) -> wp.array:
+    """The nearest triangle of every pixel of ``view``, by rasterising.
+
+    Parameters
+    ----------
+    points : wp.array of vec3, indices : wp.array of int (3 per triangle)
+        The triangles (e.g. from ``split_long_edges``: points 3k..3k+2, indices 0..3F-1).
+    view : RasterView
+        The image; pixel (i, j) lands at keys[view.base + j * view.width + i].
+    t_far : float
+        A bound of the distance to any triangle (scene units): distances are quantised
+        over [0, t_far] into the keys' upper 32 bits.
+    keys : wp.array of int64
+        Filled with ``NO_HIT`` beforehand; per covered pixel, (quantised distance << 32 |
+        triangle) of the nearest triangle (``key_hit`` turns it back into a hit).
+    tiled : bool
+        True: one thread per TILE x TILE piece of a triangle (balanced for GPUs); False: one
+        thread per triangle. Both give the same keys.
+
+    Returns ``keys``.
+    """
+    t_scale = KEY_RANGE / t_far
+    no_depth = wp.full(1, INF, dtype=float, device=device)
+    if tiled:
+        starts, total = tile_starts(count_visible_tiles, [points, indices, view], device)
+        dev.launch_private(raster_visible_tiles, total, [points, indices, view, starts, t_scale, no_depth], keys,
+                           min_into, device)
+    else:
+        dev.launch_private(raster_visible, indices.shape[0] // 3, [points, indices, view, t_scale, no_depth], keys,
+                           min_into, device)
+    return keys
 
 
 def split_long_edges(vertices: np.ndarray, faces: np.ndarray, max_edge: float):

@@ -22,7 +22,21 @@ import math
 import numpy as np
 import warp as wp
 
-from .raster import RasterView, view_ray
+from .. import device as dev
+from ..physics.constants import INF
+from .mesh import Surfaces
+from .raster import (
+    NO_HIT,
+    RasterView,
+    min_into,
+    owner,
+    raster_triangle,
+    raster_triangle_tile,
+    tile_starts,
+    triangle_at,
+    triangle_tiles,
+    view_ray,
+)
 
 NONE = wp.constant(0)  # no occluders: every point is lit
 PERSPECTIVE = wp.constant(1)
@@ -188,6 +202,98 @@ def texel_world_size(sm: ShadowMap, x: wp.vec3) -> float:
         return 2.0 * sm.extent / float(sm.res)
     ext = wp.where(sm.kind == CUBE, 1.0, sm.extent)
     return 2.0 * ext * wp.length(x - sm.origin) / float(sm.res)
+
+
+@wp.kernel
+def cast_shadow_map(offset: int, s: Surfaces, sm: ShadowMap, depth: wp.array(dtype=float)):
+    tid = wp.tid() + offset
+    o, d = texel_ray(sm, tid)
+    q = wp.mesh_query_ray(s.mesh, o, d, INF)
+    depth[sm.offset + tid] = wp.where(q.result, q.t, INF)
+
+
+@wp.kernel
+def raster_shadow_map(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int), sm: ShadowMap,
+                      faces: int, no_keys: wp.array(dtype=wp.int64), depth: wp.array(dtype=float)):
+    """One thread per triangle: its nearest distances into the texels of each face of the map."""
+    f = wp.tid() + offset
+    a, b, c = triangle_at(points, indices, f)
+    touched = map_faces_touched(sm, a, b, c)
+    for face in range(faces):
+        if (touched >> face) & 1 == 1:
+            raster_triangle(map_view(sm, face), a, b, c, f, 0, 0.0, depth, no_keys)
+
+
+@wp.kernel
+def count_map_tiles(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int), sm: ShadowMap,
+                    faces: int, counts: wp.array(dtype=int)):
+    """Per triangle: its TILE x TILE pieces over the faces of the map it reaches."""
+    f = wp.tid() + offset
+    a, b, c = triangle_at(points, indices, f)
+    touched = map_faces_touched(sm, a, b, c)
+    n = int(0)
+    for face in range(faces):
+        if (touched >> face) & 1 == 1:
+            n += triangle_tiles(map_view(sm, face), a, b, c)
+    counts[f] = n
+
+
+@wp.kernel
+def raster_map_tiles(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int), sm: ShadowMap,
+                     faces: int, starts: wp.array(dtype=int), no_keys: wp.array(dtype=wp.int64),
+                     depth: wp.array(dtype=float)):
+    """One thread per piece (``starts``: exclusive scan of ``count_map_tiles``): the piece's texels."""
+    w = wp.tid() + offset
+    f = owner(starts, w)
+    a, b, c = triangle_at(points, indices, f)
+    touched = map_faces_touched(sm, a, b, c)
+    local = w - starts[f]
+    for face in range(faces):
+        if (touched >> face) & 1 == 1:
+            v = map_view(sm, face)
+            n = triangle_tiles(v, a, b, c)
+            if local >= 0 and local < n:
+                raster_triangle_tile(v, a, b, c, f, local, 0, 0.0, depth, no_keys)
+            local -= n
+
+
+def shadow_map_depths(maps: list, device: str, points: wp.array | None = None, indices: wp.array | None = None,
+                      surfaces: Surfaces | None = None, tiled: bool = False) -> wp.array:
+    """The depth texels of ``maps`` (ShadowMaps whose ``offset`` places them in one array).
+
+    Parameters
+    ----------
+    maps : list of ShadowMap
+        From ``shadow_map_for``; texel k of a map lands at depth[map.offset + k].
+    points, indices : wp.array of vec3 and int, optional
+        Triangles to rasterise (3 indices per triangle): the maps are made by rasterising.
+    surfaces : Surfaces, optional
+        Otherwise: a ``wp.Mesh`` whose BVH one ray per texel is cast through.
+    tiled : bool
+        Rasterising: one thread per TILE x TILE piece of a triangle (GPUs) instead of one per
+        triangle; the same depths.
+
+    Returns a float array of sum(texels) entries (at least 1): per texel, the distance to the
+    nearest surface along its ray (scene units; see the module docstring), ``INF`` where none.
+    """
+    total = max(sum(texels(sm.kind, sm.res) for sm in maps), 1)
+    if points is None:
+        depth = wp.empty(total, dtype=float, device=device)
+        for sm in maps:
+            dev.launch(cast_shadow_map, texels(sm.kind, sm.res), [surfaces, sm, depth], device)
+        return depth
+    depth = wp.full(total, INF, dtype=float, device=device)
+    no_keys = wp.full(1, NO_HIT, dtype=wp.int64, device=device)
+    for sm in maps:
+        faces = texels(sm.kind, sm.res) // (sm.res * sm.res)
+        if tiled:
+            starts, n = tile_starts(count_map_tiles, [points, indices, sm, faces], device)
+            dev.launch_private(raster_map_tiles, n, [points, indices, sm, faces, starts, no_keys], depth, min_into,
+                               device)
+        else:
+            dev.launch_private(raster_shadow_map, indices.shape[0] // 3, [points, indices, sm, faces, no_keys], depth,
+                               min_into, device)
+    return depth
 
 
 def texels(kind: int, res: int) -> int:

@@ -10,6 +10,8 @@ from typing import Any
 import numpy as np
 import warp as wp
 
+from ..geometry.intersect import inside_box
+
 
 @wp.func
 def grid_value(data: wp.array(dtype=Any), offset: int, dims: wp.vec3i, ix: int, iy: int, iz: int):
@@ -19,7 +21,7 @@ def grid_value(data: wp.array(dtype=Any), offset: int, dims: wp.vec3i, ix: int, 
 @wp.func
 def grid_trilinear(data: wp.array(dtype=Any), offset: int, dims: wp.vec3i, bmin: wp.vec3, bmax: wp.vec3, x: wp.vec3):
     """Trilinear between cell centres of a float or vec3 grid; zero outside [bmin, bmax]."""
-    if x[0] < bmin[0] or x[1] < bmin[1] or x[2] < bmin[2] or x[0] > bmax[0] or x[1] > bmax[1] or x[2] > bmax[2]:
+    if not inside_box(x, bmin, bmax):
         return grid_value(data, offset, dims, 0, 0, 0) * 0.0  # the grid's own zero, float or vec3 (data are finite)
     g = wp.cw_div(x - bmin, bmax - bmin)
     fx = wp.clamp(g[0] * float(dims[0]) - 0.5, 0.0, float(dims[0] - 1))

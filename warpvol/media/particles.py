@@ -1,12 +1,18 @@
-"""Particle media: N spheres of one radius, each of uniform extinction; overlaps add.
+"""Particle media: N spheres, each of uniform extinction; overlaps add.
 
-The density factor at x is the number of spheres that contain x, found through a
-``wp.HashGrid`` with cells of the particle radius.
+In the ``Media`` struct (media/volume.py) a particle medium has one radius, and its density
+factor at x is the number of spheres that contain x (``particle_count``), found through a
+``wp.HashGrid`` with cells of the particle radius. A particle technique reads a cloud as a
+``Particles`` struct (per-sphere radius, sigma_t and albedo; ``ParticleBuffers`` builds it):
+sigma_t at a point through its hash grid (``particle_sigma_t``), exact transmittance along a
+segment through the union of spheres (``particle_transmittance``).
 """
 
 import numpy as np
 import warp as wp
 
+from ..geometry.intersect import sphere_chord
+from ..physics.transmittance import transmittance_rgb
 from .rbf import box_distance2, coarse_cells
 
 
@@ -33,14 +39,70 @@ def particle_majorant(positions: np.ndarray, radius: float, n: int = 12) -> floa
     return float(count.max())
 
 
+@wp.struct
+class Particles:
+    """A cloud of spheres, each of uniform extinction (overlaps add), as kernels read it."""
+
+    centres: wp.array(dtype=wp.vec3)
+    radius: wp.array(dtype=float)  # scene units
+    sigma_t: wp.array(dtype=wp.vec3)  # RGB extinction inside the sphere, 1/unit
+    albedo: wp.array(dtype=wp.vec3)
+    grid: wp.uint64  # wp.HashGrid over the centres, queried with r_max
+    r_max: float  # the largest radius
+
+
 @wp.func
-def sphere_chord(o: wp.vec3, d: wp.vec3, t1: float, c: wp.vec3, r: float) -> float:
-    """Length of the part of the segment o + t d (unit d, 0 <= t <= t1) inside the sphere
-    (c, r): the sphere's share of the optical depth is sigma_t times this."""
-    oc = c - o
-    b = wp.dot(oc, d)
-    h2 = r * r - (wp.dot(oc, oc) - b * b)
-    if h2 <= 0.0:
-        return 0.0
-    h = wp.sqrt(h2)
-    return wp.max(wp.min(b + h, t1) - wp.max(b - h, 0.0), 0.0)
+def particle_sigma_t(P: Particles, x: wp.vec3) -> wp.vec3:
+    """sigma_t(x): the sum of sigma_t over the spheres that contain x (through the hash grid)."""
+    acc = wp.vec3(0.0)
+    q = int(0)
+    query = wp.hash_grid_query(P.grid, x, P.r_max)
+    while wp.hash_grid_query_next(query, q):
+        d = x - P.centres[q]
+        if wp.dot(d, d) <= P.radius[q] * P.radius[q]:
+            acc += P.sigma_t[q]
+    return acc
+
+
+@wp.func
+def particle_transmittance(P: Particles, skip: int, x: wp.vec3, w: wp.vec3, t1: float) -> wp.vec3:
+    """exp(-optical depth) along x + t w (unit w), 0 <= t <= t1, through the union of the
+    spheres other than ``skip`` (-1: all): exact, chord lengths times sigma_t."""
+    tau = wp.vec3(0.0)
+    for q in range(P.centres.shape[0]):
+        if q != skip:
+            c = sphere_chord(x, w, t1, P.centres[q], P.radius[q])
+            if c > 0.0:
+                tau += c * P.sigma_t[q]
+    return transmittance_rgb(tau)
+
+
+class ParticleBuffers:
+    """Owns the device arrays and hash grid behind a ``Particles`` struct.
+
+    Parameters: ``centres`` (N, 3), ``radius`` (N,), ``sigma_t`` and ``albedo`` (N, 3),
+    float32 arrays in scene units. ``centre`` and ``R`` are the cloud's bounding ball (the
+    centres' box centre; the farthest sphere's reach), R = 1 for an empty cloud.
+    """
+
+    def __init__(self, centres: np.ndarray, radius: np.ndarray, sigma_t: np.ndarray, albedo: np.ndarray, device):
+        centres = np.asarray(centres, np.float32).reshape(-1, 3)
+        n = len(centres)
+        lo, hi = (centres.min(0), centres.max(0)) if n else (np.zeros(3), np.zeros(3))
+        self.centre = 0.5 * (lo + hi)
+        r_max = float(np.max(radius)) if n else 0.0
+        self.R = float(np.sqrt(((centres - self.centre) ** 2).sum(1)).max()) + r_max if n else 1.0
+        s = Particles()
+        s.centres = wp.array(centres, dtype=wp.vec3, device=device)
+        s.radius = wp.array(np.asarray(radius, np.float32), dtype=float, device=device)
+        s.sigma_t = wp.array(np.asarray(sigma_t, np.float32).reshape(-1, 3), dtype=wp.vec3, device=device)
+        s.albedo = wp.array(np.asarray(albedo, np.float32).reshape(-1, 3), dtype=wp.vec3, device=device)
+        s.r_max = r_max
+        self.hash_grid = None
+        s.grid = wp.uint64(0)
+        if n:
+            cells = max(1, min(128, int(np.ceil(self.R / max(r_max, 1e-6)))))
+            self.hash_grid = wp.HashGrid(cells, cells, cells, device=device)
+            self.hash_grid.build(s.centres, r_max)
+            s.grid = self.hash_grid.id
+        self.struct = s

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import warp as wp
 
+from ..geometry.intersect import inside_box, ray_box, ray_sphere
 from ..physics.constants import INF, SQRT2, SQRT_HALF_PI
 from ..physics.phase import Phase, phase_eval
 from ..physics.transmittance import transmittance_rgb
@@ -63,36 +64,6 @@ class Media:
 
 
 @wp.func
-def ray_box(o: wp.vec3, d: wp.vec3, bmin: wp.vec3, bmax: wp.vec3):
-    """Slab test: (t_near, t_far); t_near > t_far when the ray misses."""
-    t0 = float(-INF)
-    t1 = float(INF)
-    for a in range(3):
-        if wp.abs(d[a]) < 1.0e-20:
-            if o[a] < bmin[a] or o[a] > bmax[a]:
-                return INF, -INF
-        else:
-            inv = 1.0 / d[a]
-            ta = (bmin[a] - o[a]) * inv
-            tb = (bmax[a] - o[a]) * inv
-            t0 = wp.max(t0, wp.min(ta, tb))
-            t1 = wp.min(t1, wp.max(ta, tb))
-    return t0, t1
-
-
-@wp.func
-def ray_sphere(o: wp.vec3, d: wp.vec3, c: wp.vec3, r: float):
-    """(t_near, t_far) of a unit-direction ray and a sphere; t_near > t_far when it misses."""
-    oc = o - c
-    b = wp.dot(oc, d)
-    h = b * b - (wp.dot(oc, oc) - r * r)
-    if h < 0.0:
-        return INF, -INF
-    s = wp.sqrt(h)
-    return -b - s, -b + s
-
-
-@wp.func
 def medium_density(m: Media, i: int, x: wp.vec3) -> float:
     kind = m.kind[i]
     if kind == SPHERE:
@@ -100,7 +71,7 @@ def medium_density(m: Media, i: int, x: wp.vec3) -> float:
         return wp.where(wp.dot(d, d) <= m.radius[i] * m.radius[i], 1.0, 0.0)
     lo = m.bmin[i]
     hi = m.bmax[i]
-    if x[0] < lo[0] or x[1] < lo[1] or x[2] < lo[2] or x[0] > hi[0] or x[1] > hi[1] or x[2] > hi[2]:
+    if not inside_box(x, lo, hi):
         return 0.0
     if kind == BOX:
         return 1.0
@@ -142,9 +113,7 @@ def inside_convex(m: Media, i: int, x: wp.vec3) -> bool:
     if m.kind[i] == SPHERE:
         r = x - m.center[i]
         return wp.dot(r, r) <= m.radius[i] * m.radius[i]
-    lo = m.bmin[i]
-    hi = m.bmax[i]
-    return x[0] >= lo[0] and x[1] >= lo[1] and x[2] >= lo[2] and x[0] <= hi[0] and x[1] <= hi[1] and x[2] <= hi[2]
+    return inside_box(x, m.bmin[i], m.bmax[i])
 
 
 @wp.func

@@ -34,15 +34,6 @@ def transmittance_rgb(tau: wp.vec3) -> wp.vec3:
 
 
 @wp.func
-def scattered_fraction(sigma_t: float, length: float) -> float:
-    """1 - exp(-sigma_t * length): the fraction of light a slab removes, stable as sigma_t -> 0."""
-    tau = optical_depth(sigma_t, length)
-    if tau < 1.0e-4:
-        return tau * (1.0 - 0.5 * tau)
-    return 1.0 - transmittance(tau)
-
-
-@wp.func
 def step_integral(sigma_t: float, dt: float) -> float:
     """integral_0^dt exp(-sigma_t s) ds = (1 - exp(-sigma_t dt)) / sigma_t: how much of a
     constant source over a step of constant extinction leaves it; stable as sigma_t -> 0."""

@@ -76,13 +76,15 @@ import numpy as np
 import warp as wp
 
 from .. import device as dev
-from ..geometry.camera import PinholeCamera, camera_ray
-from ..media.particles import sphere_chord
+from ..geometry.camera import camera_view
+from ..geometry.intersect import ray_sphere, sphere_chord
+from ..geometry.raster import RasterView, pixel_ray
+from ..media.particles import ParticleBuffers, Particles, particle_sigma_t, particle_transmittance
 from ..physics.constants import INV_4PI, PI
 from ..physics.lights import DIRECTIONAL, Light, particle_incident
 from ..physics.phase import Phase, orthonormal_basis, phase_eval, phase_struct
 from ..physics.sphere import fibonacci_directions
-from ..physics.transmittance import sphere_escape, step_integral_rgb, transmittance_rgb
+from ..physics.transmittance import sphere_escape, step_integral, step_integral_rgb, transmittance_rgb
 from ..pipeline import Setting, SettingsError, Stage, Technique
 from ..upload import SceneUploads, pinhole
 
@@ -109,20 +111,30 @@ vec16 = wp.types.vector(length=16, dtype=float)
 DEPTH_BITS = wp.constant(wp.int64(1 << 31))
 
 
+@wp.struct
+class DirectLight:
+    """Per (particle p, light l) at p L + l: irradiance E_l T_l, travel direction w_l (0: from
+    every side) and emission weight c_l (``light_weights``)."""
+    direct: wp.array(dtype=wp.vec3)
+    travel: wp.array(dtype=wp.vec3)
+    weight: wp.array(dtype=float)
+    count: int  # lights L
+
+
+@wp.struct
+class TileLists:
+    """The splat's particles sorted by tile, then depth: tile k's are values[first[k]:last[k]]."""
+    values: wp.array(dtype=int)
+    first: wp.array(dtype=int)
+    last: wp.array(dtype=int)
+    tiles_x: int
+
+
 @wp.kernel
-def particle_extinction(offset: int, grid: wp.uint64, pos: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float),
-                        sigma: wp.array(dtype=wp.vec3), r_max: float, tau: wp.array(dtype=wp.vec3)):
+def particle_extinction(offset: int, P: Particles, tau: wp.array(dtype=wp.vec3)):
     """sigma_t of the medium at each particle's centre: the sum over spheres containing it."""
     p = wp.tid() + offset
-    x = pos[p]
-    acc = wp.vec3(0.0)
-    q = int(0)
-    query = wp.hash_grid_query(grid, x, r_max)
-    while wp.hash_grid_query_next(query, q):
-        d = x - pos[q]
-        if wp.dot(d, d) <= radius[q] * radius[q]:
-            acc += sigma[q]
-    tau[p] = acc
+    tau[p] = particle_sigma_t(P, P.centres[p])
 
 
 @wp.kernel
@@ -175,22 +187,7 @@ def link_network(offset: int, keys: wp.array(dtype=wp.int64), values: wp.array(d
     V[p * D + i] = vp
     if vp >= 0:
         dist = wp.max(wp.dot(pos[p] - pos[vp], dirs[i]), 0.0)
-        t = tau[vp]
-        alpha[vp * D + i] = wp.vec3(1.0 - wp.exp(-t[0] * dist), 1.0 - wp.exp(-t[1] * dist), 1.0 - wp.exp(-t[2] * dist))
-
-
-@wp.func
-def particle_transmittance(pos: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float),
-                           sigma: wp.array(dtype=wp.vec3), skip: int, x: wp.vec3, w: wp.vec3, t1: float) -> wp.vec3:
-    """exp(-optical depth) along x + t w, 0 <= t <= t1, through the union of the spheres
-    other than ``skip``."""
-    tau = wp.vec3(0.0)
-    for q in range(pos.shape[0]):
-        if q != skip:
-            c = sphere_chord(x, w, t1, pos[q], radius[q])
-            if c > 0.0:
-                tau += c * sigma[q]
-    return wp.vec3(wp.exp(-tau[0]), wp.exp(-tau[1]), wp.exp(-tau[2]))
+        alpha[vp * D + i] = wp.vec3(1.0) - transmittance_rgb(tau[vp] * dist)
 
 
 @wp.func
@@ -199,9 +196,7 @@ def self_shadow(tau: float, inside: bool) -> float:
     reaches it: the escape probability for light from outside (exact for a directional light),
     (1 - e^-tau) / tau, exact at the centre, for a point light inside it."""
     if inside:
-        if tau < 1.0e-4:
-            return 1.0 - 0.5 * tau
-        return (1.0 - wp.exp(-tau)) / tau
+        return step_integral(tau, 1.0)
     return sphere_escape(tau)
 
 
@@ -220,8 +215,7 @@ def ball_point(j: int, k: int, r: float) -> wp.vec3:
 
 
 @wp.kernel
-def light_arrival(offset: int, pos: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float),
-                  sigma: wp.array(dtype=wp.vec3), lights: wp.array(dtype=Light), samples: int,
+def light_arrival(offset: int, P: Particles, lights: wp.array(dtype=Light), samples: int,
                   direct: wp.array(dtype=wp.vec3), travel: wp.array(dtype=wp.vec3)):
     """Thread p L + l: light l's irradiance averaged over particle p's sphere: the ball mean
     of the inverse square times the transmittance to the light through every sphere (its
@@ -230,20 +224,21 @@ def light_arrival(offset: int, pos: wp.array(dtype=wp.vec3), radius: wp.array(dt
     tid = wp.tid() + offset
     n_l = lights.shape[0]
     p = tid / n_l
-    r = radius[p]
+    r = P.radius[p]
+    x_p = P.centres[p]
     light = lights[tid % n_l]
-    w, dist, e = particle_incident(light, pos[p], r)
+    w, dist, e = particle_incident(light, x_p, r)
     tr = wp.vec3(1.0)
     if wp.length_sq(w) > 0.0:
         if samples <= 1:
-            s = sigma[p] * r
+            s = P.sigma_t[p] * r
             inside = dist < r
             own = wp.vec3(self_shadow(s[0], inside), self_shadow(s[1], inside), self_shadow(s[2], inside))
-            tr = wp.cw_mul(particle_transmittance(pos, radius, sigma, p, pos[p], -w, dist), own)
+            tr = wp.cw_mul(particle_transmittance(P, p, x_p, -w, dist), own)
         else:
             acc = wp.vec3(0.0)
             for j in range(samples):
-                x = pos[p] + ball_point(j, samples, r)
+                x = x_p + ball_point(j, samples, r)
                 wj = w
                 dj = dist
                 if light.kind != DIRECTIONAL:
@@ -251,7 +246,7 @@ def light_arrival(offset: int, pos: wp.array(dtype=wp.vec3), radius: wp.array(dt
                     dj = wp.length(to)
                     if dj > 0.0:
                         wj = to / dj
-                acc += particle_transmittance(pos, radius, sigma, -1, x, -wj, dj)
+                acc += particle_transmittance(P, -1, x, -wj, dj)
             tr = acc / float(samples)
     direct[tid] = wp.cw_mul(e, tr)
     travel[tid] = w
@@ -283,8 +278,7 @@ def light_weights(offset: int, dirs: wp.array(dtype=wp.vec3), travel: wp.array(d
 
 
 @wp.kernel
-def emission_network(offset: int, dirs: wp.array(dtype=wp.vec3), direct: wp.array(dtype=wp.vec3),
-                     travel: wp.array(dtype=wp.vec3), weight: wp.array(dtype=float), n_lights: int,
+def emission_network(offset: int, dirs: wp.array(dtype=wp.vec3), dl: DirectLight,
                      albedo: wp.array(dtype=wp.vec3), alpha: wp.array(dtype=wp.vec3), ph: Phase,
                      table: wp.array(dtype=float), inv_scale: float, E: wp.array2d(dtype=Any)):
     """E[vp, i] = alpha a sum_l c_l p(w_l . w_i) E_l T_l, channel c of vp in row 3 vp + c
@@ -294,9 +288,9 @@ def emission_network(offset: int, dirs: wp.array(dtype=wp.vec3), direct: wp.arra
     p = tid / D
     i = tid % D
     s = wp.vec3(0.0)
-    for l in range(n_lights):
-        k = p * n_lights + l
-        s += (weight[k] * phase_toward(ph, table, travel[k], dirs[i])) * direct[k]
+    for l in range(dl.count):
+        k = p * dl.count + l
+        s += (dl.weight[k] * phase_toward(ph, table, dl.travel[k], dirs[i])) * dl.direct[k]
     e = wp.cw_mul(wp.cw_mul(alpha[tid], albedo[p]), s) * inv_scale
     for c in range(3):
         E[3 * p + c, i] = E.dtype(e[c])
@@ -385,15 +379,14 @@ def rescale(offset: int, I: wp.array2d(dtype=Any), factor: float):
 
 
 @wp.kernel
-def outgoing_radiance(offset: int, pos: wp.array(dtype=wp.vec3), eye: wp.vec3, dirs: wp.array(dtype=wp.vec3),
-                      I: wp.array2d(dtype=Any), direct: wp.array(dtype=wp.vec3), travel: wp.array(dtype=wp.vec3),
-                      n_lights: int, albedo: wp.array(dtype=wp.vec3), ph: Phase, table: wp.array(dtype=float),
+def outgoing_radiance(offset: int, P: Particles, eye: wp.vec3, dirs: wp.array(dtype=wp.vec3),
+                      I: wp.array2d(dtype=Any), dl: DirectLight, ph: Phase, table: wp.array(dtype=float),
                       normalise: int, scale: float, out: wp.array(dtype=wp.vec3)):
     """a (sum_d I[p, d] p(w_d . w_eye) 4 pi / D + sum_l p(w_l . w_eye) E_l T_l): the source
     radiance of particle p toward the eye; ``normalise``: the D weights sum to 1 instead."""
     p = wp.tid() + offset
     D = dirs.shape[0]
-    to_eye = eye - pos[p]
+    to_eye = eye - P.centres[p]
     w = wp.vec3(0.0, 0.0, 1.0)
     if wp.length_sq(to_eye) > 0.0:
         w = wp.normalize(to_eye)
@@ -407,9 +400,9 @@ def outgoing_radiance(offset: int, pos: wp.array(dtype=wp.vec3), eye: wp.vec3, d
     if normalise != 0 and total > 0.0:
         norm = 1.0 / total
     s = s * (scale * norm)
-    for l in range(n_lights):
-        s += phase_toward(ph, table, travel[p * n_lights + l], w) * direct[p * n_lights + l]
-    out[p] = wp.cw_mul(albedo[p], s)
+    for l in range(dl.count):
+        s += phase_toward(ph, table, dl.travel[p * dl.count + l], w) * dl.direct[p * dl.count + l]
+    out[p] = wp.cw_mul(P.albedo[p], s)
 
 
 @wp.func
@@ -421,15 +414,15 @@ def sphere_extent(xc: float, z: float, r: float):
 
 
 @wp.kernel
-def splat_bounds(offset: int, cam: PinholeCamera, pos: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float),
-                 tiles_x: int, tiles_y: int, rect: wp.array(dtype=wp.vec4i), count: wp.array(dtype=int)):
+def splat_bounds(offset: int, cam: RasterView, P: Particles, tiles_x: int, tiles_y: int, rect: wp.array(dtype=wp.vec4i),
+                 count: wp.array(dtype=int)):
     """Tiles [x0, x1) x [y0, y1) a particle's projected sphere may touch."""
     p = wp.tid() + offset
     kx = wp.length(cam.right)
     ky = wp.length(cam.up)
-    rel = pos[p] - cam.origin
-    z = wp.dot(rel, cam.forward)
-    r = radius[p]
+    rel = P.centres[p] - cam.origin
+    z = wp.dot(rel, cam.fwd)
+    r = P.radius[p]
     x0 = int(0)
     x1 = tiles_x
     y0 = int(0)
@@ -452,13 +445,13 @@ def splat_bounds(offset: int, cam: PinholeCamera, pos: wp.array(dtype=wp.vec3), 
 
 
 @wp.kernel
-def splat_pairs(offset: int, cam: PinholeCamera, pos: wp.array(dtype=wp.vec3), rect: wp.array(dtype=wp.vec4i),
+def splat_pairs(offset: int, cam: RasterView, pos: wp.array(dtype=wp.vec3), rect: wp.array(dtype=wp.vec4i),
                 start: wp.array(dtype=int), tiles_x: int, z_far: float, keys: wp.array(dtype=wp.int64),
                 values: wp.array(dtype=int)):
     """Key tile << 32 | depth for every (tile, particle) pair of particle p."""
     p = wp.tid() + offset
     b = rect[p]
-    depth = wp.clamp(wp.dot(pos[p] - cam.origin, cam.forward) / z_far, 0.0, 1.0)
+    depth = wp.clamp(wp.dot(pos[p] - cam.origin, cam.fwd) / z_far, 0.0, 1.0)
     q = wp.int64(depth * float(DEPTH_BITS - wp.int64(1)))
     k = start[p]
     for ty in range(b[2], b[3]):
@@ -484,32 +477,25 @@ def tile_ranges(offset: int, keys: wp.array(dtype=wp.int64), total: int, first: 
 
 
 @wp.func
-def pixel_ray_tile(cam: PinholeCamera, tid: int, tiles_x: int):
-    """The ray direction through pixel ``tid``'s centre and the index of its splatting tile."""
-    px = tid % cam.width
-    py = tid / cam.width
-    return camera_ray(cam, float(px) + 0.5, float(py) + 0.5), (py / TILE) * tiles_x + px / TILE
+def pixel_tile(cam: RasterView, tid: int, tiles_x: int) -> int:
+    """The index of pixel ``tid``'s splatting tile."""
+    return ((tid / cam.width) / TILE) * tiles_x + (tid % cam.width) / TILE
 
 
 @wp.kernel
-def composite(offset: int, cam: PinholeCamera, pos: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float),
-              sigma: wp.array(dtype=wp.vec3), radiance: wp.array(dtype=wp.vec3), values: wp.array(dtype=int),
-              first: wp.array(dtype=int), last: wp.array(dtype=int), tiles_x: int, background: wp.vec3,
-              image: wp.array(dtype=wp.vec3)):
+def composite(offset: int, cam: RasterView, P: Particles, radiance: wp.array(dtype=wp.vec3), tl: TileLists,
+              background: wp.vec3, image: wp.array(dtype=wp.vec3)):
     """Front to back over the pixel's tile: each sphere adds T (1 - e^-sigma chord) L_p."""
     tid = wp.tid() + offset
-    o = cam.origin
-    d, tile = pixel_ray_tile(cam, tid, tiles_x)
+    o, d = pixel_ray(cam, tid)
+    tile = pixel_tile(cam, tid, tl.tiles_x)
     L = wp.vec3(0.0)
     T = wp.vec3(1.0)
-    for k in range(first[tile], last[tile]):
-        p = values[k]
-        c = sphere_chord(o, d, 1.0e30, pos[p], radius[p])
+    for k in range(tl.first[tile], tl.last[tile]):
+        p = tl.values[k]
+        c = sphere_chord(o, d, 1.0e30, P.centres[p], P.radius[p])
         if c > 0.0:
-            s = sigma[p]
-            t = wp.vec3(wp.exp(-s[0] * c))
-            if s[1] != s[0] or s[2] != s[0]:
-                t = wp.vec3(t[0], wp.exp(-s[1] * c), wp.exp(-s[2] * c))
+            t = transmittance_rgb(P.sigma_t[p] * c)
             L += wp.cw_mul(wp.cw_mul(T, wp.vec3(1.0) - t), radiance[p])
             T = wp.cw_mul(T, t)
             if wp.max(T[0], wp.max(T[1], T[2])) < 1.0e-5:  # what lies behind adds < 1e-5 of it
@@ -518,28 +504,23 @@ def composite(offset: int, cam: PinholeCamera, pos: wp.array(dtype=wp.vec3), rad
 
 
 @wp.kernel
-def composite_march(offset: int, cam: PinholeCamera, pos: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float),
-                    sigma: wp.array(dtype=wp.vec3), radiance: wp.array(dtype=wp.vec3), values: wp.array(dtype=int),
-                    first: wp.array(dtype=int), last: wp.array(dtype=int), tiles_x: int, steps: int,
-                    background: wp.vec3, image: wp.array(dtype=wp.vec3)):
+def composite_march(offset: int, cam: RasterView, P: Particles, radiance: wp.array(dtype=wp.vec3), tl: TileLists,
+                    steps: int, background: wp.vec3, image: wp.array(dtype=wp.vec3)):
     """Overlapping spheres integrated together: ``steps`` steps over the span of the spheres
     the pixel ray meets, each with the summed sigma_t and source sum sigma_k L_k / sigma of the
     spheres containing its midpoint, integrated exactly over the step. Unlike the sorted
     splat, light from where spheres interleave is attenuated only by what lies in front."""
     tid = wp.tid() + offset
-    o = cam.origin
-    d, tile = pixel_ray_tile(cam, tid, tiles_x)
+    o, d = pixel_ray(cam, tid)
+    tile = pixel_tile(cam, tid, tl.tiles_x)
     t0 = float(1.0e30)
     t1 = float(0.0)
-    for k in range(first[tile], last[tile]):
-        p = values[k]
-        oc = pos[p] - o
-        b = wp.dot(oc, d)
-        h2 = radius[p] * radius[p] - (wp.dot(oc, oc) - b * b)
-        if h2 > 0.0 and b + wp.sqrt(h2) > 0.0:
-            h = wp.sqrt(h2)
-            t0 = wp.min(t0, wp.max(b - h, 0.0))
-            t1 = wp.max(t1, b + h)
+    for k in range(tl.first[tile], tl.last[tile]):
+        p = tl.values[k]
+        a, b = ray_sphere(o, d, P.centres[p], P.radius[p])
+        if a < b and b > 0.0:
+            t0 = wp.min(t0, wp.max(a, 0.0))
+            t1 = wp.max(t1, b)
     L = wp.vec3(0.0)
     T = wp.vec3(1.0)
     if t1 > t0:
@@ -548,12 +529,12 @@ def composite_march(offset: int, cam: PinholeCamera, pos: wp.array(dtype=wp.vec3
             x = o + (t0 + (float(q) + 0.5) * dt) * d
             sig = wp.vec3(0.0)
             src = wp.vec3(0.0)
-            for k in range(first[tile], last[tile]):
-                p = values[k]
-                e = x - pos[p]
-                if wp.dot(e, e) <= radius[p] * radius[p]:
-                    sig += sigma[p]
-                    src += wp.cw_mul(sigma[p], radiance[p])
+            for k in range(tl.first[tile], tl.last[tile]):
+                p = tl.values[k]
+                e = x - P.centres[p]
+                if wp.dot(e, e) <= P.radius[p] * P.radius[p]:
+                    sig += P.sigma_t[p]
+                    src += wp.cw_mul(P.sigma_t[p], radiance[p])
             if sig[0] > 0.0 or sig[1] > 0.0 or sig[2] > 0.0:
                 f = step_integral_rgb(sig, dt)  # integral of e^(-sig t) over the step
                 L += wp.cw_mul(T, wp.cw_mul(src, f))
@@ -624,12 +605,30 @@ class IlluminationNetwork(Technique):
         if len(phases) > 1:
             raise SettingsError(f"{NAME}: the particle media must share one phase function (found {len(phases)})")
         self.uploads = SceneUploads(self, medium=False)
-        self.I = self.I_next = self.E = None
+        # network stage: the cloud, its layout and the visibility network
+        self._layout: tuple | None = None  # (N, D, window, half, phase_norm) the network was built for
+        self._n = 0  # particles N
+        self.D = self.Dp = self.rows = 0  # directions, padded to 16; rows of I (3N padded to ROWS)
+        self._particles: ParticleBuffers | None = None
+        self.particles: Particles | None = None
+        self.centre: np.ndarray | None = None  # the cloud's bounding ball (centre, R)
+        self.R = 1.0
+        self.M = 0  # window resolution
+        self._next_direction = 0  # refresh: the next direction to re-peel
+        self.dirs = self.V = self.alpha = self.tau = None
+        self.phase: Phase | None = None
+        self.table = self.P = None
+        self.p_max = 0.0
+        # direct and emission stages
+        self.direct = self.travel = self.light_weight = None
+        # iterate stage
+        self.I = self.I_next = self.E = self.S = None
         self.scale = 1.0
         self.change = float("inf")  # relative L2 change of the last iteration
         self.history: list[float] = []  # change per iteration since the last restart
         self.converged = False
-        self._n = 0
+        # splat stage
+        self.radiance = self.image = None
 
     # --- stages -------------------------------------------------------------------------
 
@@ -660,19 +659,14 @@ class IlluminationNetwork(Technique):
         n = len(pos)
         D = s["directions"]
         layout = (n, D, s["window"], s["half"], s["phase_norm"])
-        partial = bool(s["refresh"]) and getattr(self, "_layout", None) == layout
+        partial = bool(s["refresh"]) and self._layout == layout
         self._layout = layout
         self._n = n
         self.D, self.Dp = D, _pad(D, 16)
         self.rows = _pad(3 * max(n, 1), ROWS)
-        self.pos = wp.array(pos, dtype=wp.vec3, device=device)
-        self.radius = wp.array(radius, dtype=float, device=device)
-        self.sigma = wp.array(sigma.reshape(-1, 3), dtype=wp.vec3, device=device)
-        self.albedo = wp.array(albedo.reshape(-1, 3), dtype=wp.vec3, device=device)
-        lo, hi = (pos.min(0), pos.max(0)) if n else (np.zeros(3), np.zeros(3))
-        self.centre = 0.5 * (lo + hi)
-        r_max = float(radius.max()) if n else 0.0
-        self.R = float(np.sqrt(((pos - self.centre) ** 2).sum(1)).max()) + r_max if n else 1.0
+        self._particles = ParticleBuffers(pos, radius, sigma, albedo, device)
+        self.particles = P = self._particles.struct
+        self.centre, self.R = self._particles.centre, self._particles.R
         if partial:  # the paper's future work: re-peel k directions a frame, round robin
             which = (self._next_direction + np.arange(min(s["refresh"], D))) % D
             self._next_direction = int((which[-1] + 1) % D)
@@ -687,19 +681,17 @@ class IlluminationNetwork(Technique):
             self._next_direction = 0
         self.tau = wp.zeros(n, dtype=wp.vec3, device=device)
         if n:
-            grid = wp.HashGrid(*([max(1, min(128, int(np.ceil(self.R / max(r_max, 1e-6)))))] * 3), device=device)
-            grid.build(self.pos, r_max)
-            dev.launch(particle_extinction, n, [grid.id, self.pos, self.radius, self.sigma, r_max, self.tau], device)
+            dev.launch(particle_extinction, n, [P, self.tau], device)
             k = len(which)
             which = wp.array(which.astype(np.int32), dtype=int, device=device)
             if partial:
                 dev.launch(clear_directions, n * k, [which, D, self.V, self.alpha], device)
             keys = wp.empty(2 * n * k, dtype=wp.int64, device=device)
             values = wp.empty(2 * n * k, dtype=int, device=device)
-            dev.launch(project_particles, n * k, [self.pos, self.dirs, which, wp.vec3(*self.centre), self.R, self.M,
+            dev.launch(project_particles, n * k, [P.centres, self.dirs, which, wp.vec3(*self.centre), self.R, self.M,
                                                   keys, values], device)
             wp.utils.radix_sort_pairs(keys, values, n * k)
-            dev.launch(link_network, n * k, [keys, values, self.pos, self.dirs, self.tau, self.M, self.V, self.alpha],
+            dev.launch(link_network, n * k, [keys, values, P.centres, self.dirs, self.tau, self.M, self.V, self.alpha],
                        device)
         if partial:
             self.converged = False
@@ -736,9 +728,8 @@ class IlluminationNetwork(Technique):
         self.direct = wp.zeros(max(n * L, 1), dtype=wp.vec3, device=self.device)
         self.travel = wp.zeros(max(n * L, 1), dtype=wp.vec3, device=self.device)
         if n:
-            dev.launch(light_arrival, n * L, [self.pos, self.radius, self.sigma, self.uploads.lights,
-                                              self.settings["light_samples"], self.direct, self.travel], self.device,
-                       min_split=256)
+            dev.launch(light_arrival, n * L, [self.particles, self.uploads.lights, self.settings["light_samples"],
+                                              self.direct, self.travel], self.device, min_split=256)
 
     def _emission(self):
         n, D, L = self._n, self.D, len(self.scene.lights)
@@ -758,13 +749,18 @@ class IlluminationNetwork(Technique):
                 dev.launch(light_weights, n * L, [self.dirs, self.travel, self.phase, self.table,
                                                   self.settings["phase_norm"], self.light_weight], self.device,
                            min_split=256)
-            dev.launch(emission_network, n * D, [self.dirs, self.direct, self.travel, self.light_weight, L,
-                                                 self.albedo, self.alpha, self.phase, self.table, 1.0 / self.scale,
-                                                 self.E], self.device)
+            dev.launch(emission_network, n * D, [self.dirs, self._direct_light(), self.particles.albedo, self.alpha,
+                                                 self.phase, self.table, 1.0 / self.scale, self.E], self.device)
         if not self.settings["warm"]:
             self.I.zero_()
             self.history = []
         self.converged = False
+
+    def _direct_light(self) -> DirectLight:
+        dl = DirectLight()
+        dl.direct, dl.travel, dl.weight = self.direct, self.travel, self.light_weight
+        dl.count = len(self.scene.lights)
+        return dl
 
     def _emission_bound(self) -> float:
         """An upper bound of E: lights x the largest direct irradiance x the largest weighted
@@ -792,7 +788,7 @@ class IlluminationNetwork(Technique):
             dev.launch(scatter_matmul, self.rows // ROWS * (self.Dp // 16), [self.I, self.P, S], device, min_split=64)
             sky = wp.vec3(*(np.asarray(self.scene.background, np.float64) / self.scale))
             dev.launch(gather_update, n * (-(-D // 16)),
-                       [self.V, self.alpha, self.albedo, self.E, self.I, S, sky, D, self.I_next], device)
+                       [self.V, self.alpha, self.particles.albedo, self.E, self.I, S, sky, D, self.I_next], device)
         if measure is None:
             measure = self.settings["tolerance"] > 0.0
         change = float("nan")
@@ -810,20 +806,20 @@ class IlluminationNetwork(Technique):
         cam, device, n = self.scene.camera, self.device, self._n
         W, H = cam.width, cam.height
         self.image = wp.empty(W * H, dtype=wp.vec3, device=device)
-        pc = pinhole(cam)
+        pc = camera_view(pinhole(cam))
+        P = self.particles
         tx, ty = -(-W // TILE), -(-H // TILE)
         first = wp.zeros(tx * ty, dtype=int, device=device)
         last = wp.zeros(tx * ty, dtype=int, device=device)
         self.radiance = wp.zeros(max(n, 1), dtype=wp.vec3, device=device)
         values = wp.zeros(1, dtype=int, device=device)
         if n:
-            dev.launch(outgoing_radiance, n, [self.pos, pc.origin, self.dirs, self.I, self.direct, self.travel,
-                                              len(self.scene.lights), self.albedo, self.phase, self.table,
-                                              self.settings["phase_norm"], self.scale, self.radiance], device,
-                       min_split=512)
+            dev.launch(outgoing_radiance, n, [P, pc.origin, self.dirs, self.I, self._direct_light(), self.phase,
+                                              self.table, self.settings["phase_norm"], self.scale, self.radiance],
+                       device, min_split=512)
             rect = wp.empty(n, dtype=wp.vec4i, device=device)
             count = wp.empty(n, dtype=int, device=device)
-            dev.launch(splat_bounds, n, [pc, self.pos, self.radius, tx, ty, rect, count], device)
+            dev.launch(splat_bounds, n, [pc, P, tx, ty, rect, count], device)
             start = wp.empty(n, dtype=int, device=device)
             wp.utils.array_scan(count, start, inclusive=False)
             total = int(start.numpy()[-1] + count.numpy()[-1])
@@ -831,16 +827,17 @@ class IlluminationNetwork(Technique):
                 keys = wp.empty(2 * total, dtype=wp.int64, device=device)
                 values = wp.empty(2 * total, dtype=int, device=device)
                 z_far = float(np.linalg.norm(self.centre - np.asarray(cam.origin)) + self.R)
-                dev.launch(splat_pairs, n, [pc, self.pos, rect, start, tx, z_far, keys, values], device)
+                dev.launch(splat_pairs, n, [pc, P.centres, rect, start, tx, z_far, keys, values], device)
                 wp.utils.radix_sort_pairs(keys, values, total)
                 dev.launch(tile_ranges, total, [keys, total, first, last], device)
         bg = wp.vec3(*self.scene.background)
+        tl = TileLists()
+        tl.values, tl.first, tl.last, tl.tiles_x = values, first, last, tx
         if self.settings["splat_steps"]:
-            dev.launch(composite_march, W * H, [pc, self.pos, self.radius, self.sigma, self.radiance, values, first,
-                                                last, tx, self.settings["splat_steps"], bg, self.image], device)
+            dev.launch(composite_march, W * H, [pc, P, self.radiance, tl, self.settings["splat_steps"], bg, self.image],
+                       device)
         else:
-            dev.launch(composite, W * H, [pc, self.pos, self.radius, self.sigma, self.radiance, values, first, last,
-                                          tx, bg, self.image], device)
+            dev.launch(composite, W * H, [pc, P, self.radiance, tl, bg, self.image], device)
 
     def output(self):
         return self.image
@@ -874,11 +871,11 @@ class IlluminationNetwork(Technique):
             travel = self.travel.numpy()[0] if self.scene.lights and n else np.array([0.0, -1.0, 0.0])
             extra["view_direction"] = int(np.argmax(dirs @ travel)) if np.any(travel) else 0
         return {**extra,
-            "positions": self.pos.numpy(), "directions": self.dirs.numpy(),
+            "positions": self.particles.centres.numpy(), "directions": self.dirs.numpy(),
             "visibility": self.V.numpy().reshape(n, D), "alpha": self.alpha.numpy().reshape(n, D, 3),
             "radiance": self.radiance_network(),
-            "outgoing": self.radiance.numpy()[:n] if getattr(self, "radiance", None) is not None else None,
-            "window": self.M, "bounds": (tuple(self.centre), self.R), "radius": self.radius.numpy(),
+            "outgoing": self.radiance.numpy()[:n] if self.radiance is not None else None,
+            "window": self.M, "bounds": (tuple(self.centre), self.R), "radius": self.particles.radius.numpy(),
         }
 
 

@@ -64,13 +64,29 @@ import numpy as np
 import warp as wp
 
 from .. import device as dev
-from ..geometry.camera import PinholeCamera, camera_ray, camera_view
+from ..geometry.camera import camera_view
+from ..geometry.intersect import ray_box
 from ..geometry.mesh import Surfaces, surface_hit
-from ..geometry.raster import (KEY_RANGE, NO_HIT, RasterView, key_hit, owner, raster_triangle,
-                              raster_triangle_tile, split_long_edges, triangle_at, triangle_tiles)
-from ..geometry.shadowmap import (ShadowMap, map_faces_touched, map_view, shadow_map_for, shadow_visibility,
-                                  texel_ray, texel_world_size, texels)
-from ..media.volume import Media, homogeneous_optical_depth, in_scatter_at, ray_box, sigma_t_at
+from ..geometry.raster import (
+    NO_HIT,
+    RasterView,
+    key_hit,
+    pixel_ray,
+    rasterise_visible,
+    split_long_edges,
+    triangle_at,
+    view_ray,
+)
+from ..geometry.shadowmap import (
+    ShadowMap,
+    shadow_map_depths,
+    shadow_map_for,
+    shadow_visibility,
+    texel_ray,
+    texel_world_size,
+    texels,
+)
+from ..media.volume import Media, homogeneous_optical_depth, in_scatter_at, sigma_t_at
 from ..physics.brdf import brdf_eval
 from ..physics.constants import INF, RAY_EPS
 from ..physics.lights import Light, light_incident
@@ -111,119 +127,44 @@ class ShaftSettings:
     has_depth: int  # 0 when the scene has no surfaces (depth pass skipped)
 
 
-@wp.kernel
-def cast_shadow_map(offset: int, s: Surfaces, sm: ShadowMap, depth: wp.array(dtype=float)):
-    tid = wp.tid() + offset
-    o, d = texel_ray(sm, tid)
-    q = wp.mesh_query_ray(s.mesh, o, d, INF)
-    depth[sm.offset + tid] = wp.where(q.result, q.t, INF)
+@wp.struct
+class ShadowedLights:
+    lights: wp.array(dtype=Light)
+    maps: wp.array(dtype=ShadowMap)  # one per light
+    depth: wp.array(dtype=float)  # the maps' texels
 
 
-@wp.kernel
-def raster_shadow_map(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int), sm: ShadowMap,
-                      faces: int, no_keys: wp.array(dtype=wp.int64), depth: wp.array(dtype=float)):
-    """One thread per triangle: its nearest distances into the texels of each face of the map."""
-    f = wp.tid() + offset
-    a, b, c = triangle_at(points, indices, f)
-    touched = map_faces_touched(sm, a, b, c)
-    for face in range(faces):
-        if (touched >> face) & 1 == 1:
-            raster_triangle(map_view(sm, face), a, b, c, f, 0, 0.0, depth, no_keys)
-
-
-@wp.kernel
-def raster_visible(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int), view: RasterView,
-                   t_scale: float, no_depth: wp.array(dtype=float), keys: wp.array(dtype=wp.int64)):
-    """One thread per triangle: (distance, triangle) keys of the nearest surface per pixel."""
-    f = wp.tid() + offset
-    a, b, c = triangle_at(points, indices, f)
-    raster_triangle(view, a, b, c, f, 1, t_scale, no_depth, keys)
-
-
-@wp.kernel
-def count_map_tiles(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int), sm: ShadowMap,
-                    faces: int, counts: wp.array(dtype=int)):
-    """Per triangle: its TILE x TILE pieces over the faces of the map it reaches."""
-    f = wp.tid() + offset
-    a, b, c = triangle_at(points, indices, f)
-    touched = map_faces_touched(sm, a, b, c)
-    n = int(0)
-    for face in range(faces):
-        if (touched >> face) & 1 == 1:
-            n += triangle_tiles(map_view(sm, face), a, b, c)
-    counts[f] = n
-
-
-@wp.kernel
-def raster_map_tiles(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int), sm: ShadowMap,
-                     faces: int, starts: wp.array(dtype=int), no_keys: wp.array(dtype=wp.int64),
-                     depth: wp.array(dtype=float)):
-    """One thread per piece (``starts``: exclusive scan of ``count_map_tiles``): the piece's texels."""
-    w = wp.tid() + offset
-    f = owner(starts, w)
-    a, b, c = triangle_at(points, indices, f)
-    touched = map_faces_touched(sm, a, b, c)
-    local = w - starts[f]
-    for face in range(faces):
-        if (touched >> face) & 1 == 1:
-            v = map_view(sm, face)
-            n = triangle_tiles(v, a, b, c)
-            if local >= 0 and local < n:
-                raster_triangle_tile(v, a, b, c, f, local, 0, 0.0, depth, no_keys)
-            local -= n
-
-
-@wp.kernel
-def count_visible_tiles(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int),
-                        view: RasterView, counts: wp.array(dtype=int)):
-    f = wp.tid() + offset
-    a, b, c = triangle_at(points, indices, f)
-    counts[f] = triangle_tiles(view, a, b, c)
-
-
-@wp.kernel
-def raster_visible_tiles(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int),
-                         view: RasterView, starts: wp.array(dtype=int), t_scale: float,
-                         no_depth: wp.array(dtype=float), keys: wp.array(dtype=wp.int64)):
-    w = wp.tid() + offset
-    f = owner(starts, w)
-    a, b, c = triangle_at(points, indices, f)
-    raster_triangle_tile(view, a, b, c, f, w - starts[f], 1, t_scale, no_depth, keys)
-
-
-@wp.kernel
-def min_into_float(offset: int, src: wp.array(dtype=float), dst: wp.array(dtype=float)):
-    tid = wp.tid() + offset
-    dst[tid] = wp.min(dst[tid], src[tid])
-
-
-@wp.kernel
-def min_into_int64(offset: int, src: wp.array(dtype=wp.int64), dst: wp.array(dtype=wp.int64)):
-    tid = wp.tid() + offset
-    dst[tid] = wp.min(dst[tid], src[tid])
+@wp.struct
+class VisibleSurface:
+    """Per pixel, from the visible stage: the surface's distance and face (-1: none), the view
+    ray's media segment (t_in, t_end, t_out), and the triangles the faces index."""
+    t_hit: wp.array(dtype=float)
+    face: wp.array(dtype=int)
+    segs: wp.array(dtype=wp.vec3)
+    points: wp.array(dtype=wp.vec3)
+    indices: wp.array(dtype=int)
 
 
 @wp.func
-def light_arriving(m: Media, lights: wp.array(dtype=Light), maps: wp.array(dtype=ShadowMap),
-                   depth: wp.array(dtype=float), l: int, x: wp.vec3, n: wp.vec3, shadow_steps: int):
+def light_arriving(m: Media, sl: ShadowedLights, l: int, x: wp.vec3, n: wp.vec3, shadow_steps: int):
     """(wi, E v, tau): the direction to light l, the irradiance it sends to x past the surfaces
     (shadow-map visibility v), and the optical depth of the media on the way, left for the caller
     to put into one exponential with its own. On a surface, ``n`` is its normal and the map is
     read half a texel off it (normal offset); in the medium n = 0."""
-    wi, dist, e = light_incident(lights[l], x)
+    wi, dist, e = light_incident(sl.lights[l], x)
     if dist <= 0.0:
         return wi, wp.vec3(0.0), wp.vec3(0.0)
     p = x
     if n[0] != 0.0 or n[1] != 0.0 or n[2] != 0.0:
-        p = x + (0.5 * texel_world_size(maps[l], x)) * n
-    v = shadow_visibility(maps[l], depth, p)
+        p = x + (0.5 * texel_world_size(sl.maps[l], x)) * n
+    v = shadow_visibility(sl.maps[l], sl.depth, p)
     if v <= 0.0:
         return wi, wp.vec3(0.0), wp.vec3(0.0)
     return wi, e * v, marched_optical_depth(m, x, wi, 0.0, dist, shadow_steps)
 
 
 @wp.kernel
-def view_segments(offset: int, cam: PinholeCamera, m: Media, s: Surfaces, source: int,
+def view_segments(offset: int, cam: RasterView, m: Media, s: Surfaces, source: int,
                   keys: wp.array(dtype=wp.int64), points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int),
                   parent: wp.array(dtype=int), t_hit: wp.array(dtype=float), face: wp.array(dtype=int),
                   segs: wp.array(dtype=wp.vec3)):
@@ -232,49 +173,46 @@ def view_segments(offset: int, cam: PinholeCamera, m: Media, s: Surfaces, source
     and the view ray's segment in the media, (t_in, t_end, t_out) with t_end = min(t_out,
     surface)."""
     tid = wp.tid() + offset
-    d = camera_ray(cam, float(tid % cam.width) + 0.5, float(tid / cam.width) + 0.5)
+    o, d = pixel_ray(cam, tid)
     hit = bool(False)
     t = float(INF)
     n = wp.vec3(0.0, 1.0, 0.0)
     f = int(-1)
     if source == 1:
-        hit, t, n, f = key_hit(keys[tid], points, indices, cam.origin, d)
+        hit, t, n, f = key_hit(keys[tid], points, indices, o, d)
         if hit:
             f = parent[f]  # the face the rasterised piece came from
     elif source == 2:
-        hit, t, n, f = surface_hit(s, cam.origin, d, INF)
+        hit, t, n, f = surface_hit(s, o, d, INF)
     if source != 0:
         t_hit[tid] = t
         face[tid] = f
-    a, b = ray_box(cam.origin, d, m.all_min, m.all_max)
+    a, b = ray_box(o, d, m.all_min, m.all_max)
     segs[tid] = wp.vec3(wp.max(a, 0.0), wp.min(b, t), b)
 
 
 @wp.kernel
-def shade_visible_surface(offset: int, cam: PinholeCamera, m: Media, s: Surfaces, lights: wp.array(dtype=Light),
-                          maps: wp.array(dtype=ShadowMap), depth: wp.array(dtype=float), shadow_steps: int,
-                          view_steps: int, background: wp.vec3, mesh_points: wp.array(dtype=wp.vec3),
-                          mesh_indices: wp.array(dtype=int), t_hit: wp.array(dtype=float),
-                          face: wp.array(dtype=int), segs: wp.array(dtype=wp.vec3),
+def shade_visible_surface(offset: int, cam: RasterView, m: Media, s: Surfaces, sl: ShadowedLights,
+                          vis: VisibleSurface, shadow_steps: int, view_steps: int, background: wp.vec3,
                           radiance: wp.array(dtype=wp.vec3)):
     """The paper's step 1: the radiance the visible surface reflects (direct light through the
     shadow maps and the media), then its part of equation 1, L0 exp(-tau s): attenuated along
     the view ray (heterogeneous media by ``view_steps`` midpoints, as the march). Pixels without
     a surface take the attenuated ``background``."""
     tid = wp.tid() + offset
-    d = camera_ray(cam, float(tid % cam.width) + 0.5, float(tid / cam.width) + 0.5)
-    f = face[tid]
-    t = wp.where(f >= 0, t_hit[tid], segs[tid][2])  # the surface, or where the view leaves the media
-    tau_v = marched_optical_depth(m, cam.origin, d, 0.0, t, view_steps)
+    o, d = pixel_ray(cam, tid)
+    f = vis.face[tid]
+    t = wp.where(f >= 0, vis.t_hit[tid], vis.segs[tid][2])  # the surface, or where the view leaves the media
+    tau_v = marched_optical_depth(m, o, d, 0.0, t, view_steps)
     L = wp.cw_mul(background, transmittance_rgb(tau_v))
     if f >= 0:
         L = wp.vec3(0.0)
-        a, b, c = triangle_at(mesh_points, mesh_indices, f)
+        a, b, c = triangle_at(vis.points, vis.indices, f)
         n = wp.normalize(wp.cross(b - a, c - a))
         n = wp.where(wp.dot(n, d) < 0.0, n, -n)
-        p = cam.origin + t * d + RAY_EPS * n
-        for l in range(lights.shape[0]):
-            wi, e, tau = light_arriving(m, lights, maps, depth, l, p, n, shadow_steps)
+        p = o + t * d + RAY_EPS * n
+        for l in range(sl.lights.shape[0]):
+            wi, e, tau = light_arriving(m, sl, l, p, n, shadow_steps)
             cos_l = wp.dot(n, wi)
             if cos_l > 0.0:  # to the surface and on to the camera: one exponential
                 L += cos_l * wp.cw_mul(brdf_eval(s.material[f], n, -d, wi), wp.cw_mul(e, transmittance_rgb(tau + tau_v)))
@@ -282,8 +220,7 @@ def shade_visible_surface(offset: int, cam: PinholeCamera, m: Media, s: Surfaces
 
 
 @wp.kernel
-def march_shafts(offset: int, cam: PinholeCamera, m: Media, lights: wp.array(dtype=Light),
-                 maps: wp.array(dtype=ShadowMap), depth: wp.array(dtype=float), segs: wp.array(dtype=wp.vec3),
+def march_shafts(offset: int, cam: RasterView, m: Media, sl: ShadowedLights, segs: wp.array(dtype=wp.vec3),
                  background: wp.vec3, st: ShaftSettings, surface_out: wp.array(dtype=wp.vec3),
                  partial_out: wp.array(dtype=wp.vec3)):
     """This pixel's share of the in-scattering sum (its samples k = k0, k0 + M^2, ...). With
@@ -292,8 +229,7 @@ def march_shafts(offset: int, cam: PinholeCamera, m: Media, lights: wp.array(dty
     tid = wp.tid() + offset
     px = tid % cam.width
     py = tid / cam.width
-    o = cam.origin
-    d = camera_ray(cam, float(px) + 0.5, float(py) + 0.5)
+    o, d = view_ray(cam, px, py)
     seg = segs[tid]  # from the visible stage: (t_in, up to the surface, t_out)
     ta = seg[0]
     tb = seg[1]
@@ -323,8 +259,8 @@ def march_shafts(offset: int, cam: PinholeCamera, m: Media, lights: wp.array(dty
                 lk = c0 + u * w
                 x = o + lk * d
                 tau_v = homogeneous_optical_depth(m, o, d, 0.0, lk)
-                for l in range(lights.shape[0]):
-                    wi, e, tau = light_arriving(m, lights, maps, depth, l, x, wp.vec3(0.0), st.shadow_steps)
+                for l in range(sl.lights.shape[0]):
+                    wi, e, tau = light_arriving(m, sl, l, x, wp.vec3(0.0), st.shadow_steps)
                     if e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0:
                         li = wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e)
                         acc += wp.cw_mul(transmittance_rgb(tau_v + tau), li) * w
@@ -341,8 +277,8 @@ def march_shafts(offset: int, cam: PinholeCamera, m: Media, lights: wp.array(dty
                 sig = sigma_t_at(m, x, True)
                 if k % stride == k0:
                     tau_v = tau + homogeneous_optical_depth(m, o, d, ta, lk) + sig * (u * w)
-                    for l in range(lights.shape[0]):
-                        wi, e, tau_l = light_arriving(m, lights, maps, depth, l, x, wp.vec3(0.0), st.shadow_steps)
+                    for l in range(sl.lights.shape[0]):
+                        wi, e, tau_l = light_arriving(m, sl, l, x, wp.vec3(0.0), st.shadow_steps)
                         if e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0:
                             li = wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e)
                             acc += wp.cw_mul(transmittance_rgb(tau_v + tau_l), li) * w
@@ -424,16 +360,15 @@ def shadow_hit_points(offset: int, sm: ShadowMap, depth: wp.array(dtype=float), 
 
 
 @wp.kernel
-def sample_lit_slice(offset: int, m: Media, lights: wp.array(dtype=Light), maps: wp.array(dtype=ShadowMap),
-                     depth: wp.array(dtype=float), corner: wp.vec3, edge_u: wp.vec3, edge_v: wp.vec3, res: int,
+def sample_lit_slice(offset: int, m: Media, sl: ShadowedLights, corner: wp.vec3, edge_u: wp.vec3, edge_v: wp.vec3, res: int,
                      view: wp.vec3, shadow_steps: int, out: wp.array(dtype=wp.vec3)):
     """Radiance scattered per unit length toward a camera looking along ``view``, sum_l sigma_s p E v T,
     on a plane (the same phase angle as the march: cos = view . wi)."""
     tid = wp.tid() + offset
     x = corner + (float(tid % res) + 0.5) / float(res) * edge_u + (float(tid / res) + 0.5) / float(res) * edge_v
     li = wp.vec3(0.0)
-    for l in range(lights.shape[0]):
-        wi, e, tau = light_arriving(m, lights, maps, depth, l, x, wp.vec3(0.0), shadow_steps)
+    for l in range(sl.lights.shape[0]):
+        wi, e, tau = light_arriving(m, sl, l, x, wp.vec3(0.0), shadow_steps)
         li += wp.cw_mul(in_scatter_at(m, x, wp.dot(view, wi)), wp.cw_mul(e, transmittance_rgb(tau)))
     out[tid] = li
 
@@ -516,44 +451,24 @@ class LightShafts(Technique):
         mode = self.settings["raster_tiles"]
         return mode == 1 or (mode == -1 and str(self.device).startswith("cuda"))
 
-    def _tile_starts(self, count_kernel, inputs: list):
-        """Pieces per triangle, their exclusive scan (where each triangle's pieces start) and
-        the total, the one number read back to size the launch."""
-        ntri = inputs[1].shape[0] // 3
-        counts = self._scratch("tile_counts", ntri, int)
-        starts = self._scratch("tile_starts", ntri, int)
-        dev.launch(count_kernel, ntri, [*inputs, counts], self.device)
-        wp.utils.array_scan(counts, starts, inclusive=False)
-        last = np.concatenate([starts[ntri - 1:].numpy(), counts[ntri - 1:].numpy()])
-        return starts, int(last.sum())
-
     def _shadow_maps(self):
         structs = self._map_structs(occluders=True)
-        total = sum(texels(sm.kind, sm.res) for sm in structs)
         if self.settings["raster"]:
-            self.depth = wp.full(max(total, 1), INF, dtype=float, device=self.device)
             points, indices, _ = self._mesh_arrays()
-            for sm in structs:
-                faces = texels(sm.kind, sm.res) // (sm.res * sm.res)
-                if self._tiled():
-                    starts, total = self._tile_starts(count_map_tiles, [points, indices, sm, faces])
-                    dev.launch_private(raster_map_tiles, total, [points, indices, sm, faces, starts, self._no_keys],
-                                       self.depth, min_into_float, self.device)
-                else:
-                    dev.launch_private(raster_shadow_map, indices.shape[0] // 3,
-                                       [points, indices, sm, faces, self._no_keys], self.depth, min_into_float,
-                                       self.device)
+            self.depth = shadow_map_depths(structs, self.device, points, indices, tiled=self._tiled())
         else:
-            self.depth = wp.empty(max(total, 1), dtype=float, device=self.device)
-            for sm in structs:
-                dev.launch(cast_shadow_map, texels(sm.kind, sm.res), [self.uploads.surfaces, sm, self.depth],
-                           self.device)
+            self.depth = shadow_map_depths(structs, self.device, surfaces=self.uploads.surfaces)
         self.maps = wp.array(structs, dtype=ShadowMap, device=self.device)
 
     def _no_shadow_maps(self):
         if not (self.scene.surfaces and self.scene.lights):  # no shadow pass: every map says "lit"
             self.maps = wp.array(self._map_structs(occluders=False) or [ShadowMap()], dtype=ShadowMap,
                                  device=self.device)
+
+    def _shadowed_lights(self) -> ShadowedLights:
+        sl = ShadowedLights()
+        sl.lights, sl.maps, sl.depth = self.uploads.lights, self.maps, self.depth
+        return sl
 
     def _scratch(self, name: str, n: int, dtype, fill=None):
         """An intermediate array kept from frame to frame (allocating and first touching ~6 MB per
@@ -568,7 +483,7 @@ class LightShafts(Technique):
     def _visible(self):
         scene, cam, u = self.scene, self.scene.camera, self.uploads
         npix = cam.width * cam.height
-        view = pinhole(cam)
+        view = camera_view(pinhole(cam))
         self.segs = self._scratch("segs", npix, wp.vec3)
         keys = self._no_keys
         points, indices, parent = self._no_points, self._no_index, self._no_index
@@ -582,15 +497,7 @@ class LightShafts(Technique):
             lo, hi = scene_bounds(scene)
             corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
             t_far = float(np.max(np.linalg.norm(corners - np.asarray(cam.origin, float), axis=1)))
-            if self._tiled():
-                starts, total = self._tile_starts(count_visible_tiles, [points, indices, camera_view(view)])
-                dev.launch_private(raster_visible_tiles, total,
-                                   [points, indices, camera_view(view), starts, KEY_RANGE / t_far, self.depth], keys,
-                                   min_into_int64, self.device)
-            else:
-                dev.launch_private(raster_visible, indices.shape[0] // 3,
-                                   [points, indices, camera_view(view), KEY_RANGE / t_far, self.depth], keys,
-                                   min_into_int64, self.device)
+            rasterise_visible(points, indices, view, t_far, keys, self._tiled(), self.device)
         source = 0 if not scene.surfaces else (1 if self.settings["raster"] else 2)
         dev.launch(view_segments, npix, [view, u.media.struct, u.surfaces, source, keys, points, indices, parent, t_hit,
                                          face, self.segs], self.device)
@@ -601,10 +508,13 @@ class LightShafts(Technique):
         self._no_shadow_maps()
         self.radiance = self._scratch("radiance", npix, wp.vec3)
         mesh = u._surfaces.mesh
-        dev.launch(shade_visible_surface, npix, [pinhole(cam), u.media.struct, u.surfaces, u.lights, self.maps,
-                                                 self.depth, self.settings["shadow_steps"], self.settings["steps"],
-                                                 wp.vec3(*scene.background), mesh.points, mesh.indices, self.t_hit,
-                                                 self.face, self.segs, self.radiance], self.device)
+        vis = VisibleSurface()
+        vis.t_hit, vis.face, vis.segs = self.t_hit, self.face, self.segs
+        vis.points, vis.indices = mesh.points, mesh.indices
+        dev.launch(shade_visible_surface, npix, [camera_view(pinhole(cam)), u.media.struct, u.surfaces,
+                                                 self._shadowed_lights(), vis, self.settings["shadow_steps"],
+                                                 self.settings["steps"], wp.vec3(*scene.background), self.radiance],
+                   self.device)
 
     def _march(self):
         scene, u, cfg = self.scene, self.uploads, self.settings
@@ -622,7 +532,7 @@ class LightShafts(Technique):
         st.spacing = cfg["spacing"]
         st.has_depth = int(has_depth)
         self.partial = self._scratch("partial", npix, wp.vec3)
-        dev.launch(march_shafts, npix, [pinhole(cam), u.media.struct, u.lights, self.maps, self.depth, self.segs,
+        dev.launch(march_shafts, npix, [camera_view(pinhole(cam)), u.media.struct, self._shadowed_lights(), self.segs,
                                         wp.vec3(*scene.background), st, self.surface, self.partial], self.device)
         if st.block == 1 or not cfg["scattering"] or not scene.media:
             self.image = wp.empty(npix, dtype=wp.vec3, device=self.device)  # the frame's own: not reused
@@ -681,7 +591,7 @@ class LightShafts(Technique):
         edge_u, edge_v = 2 * half * right, 2 * half * up
         lit = wp.empty(resolution * resolution, dtype=wp.vec3, device=self.device)
         dev.launch(sample_lit_slice, resolution * resolution,
-                   [self.uploads.media.struct, self.uploads.lights, self.maps, self.depth, wp.vec3(*corner),
+                   [self.uploads.media.struct, self._shadowed_lights(), wp.vec3(*corner),
                     wp.vec3(*edge_u), wp.vec3(*edge_v), resolution, wp.vec3(*view), self.settings["shadow_steps"],
                     lit], self.device)
         out["lit_slice"] = lit.numpy().reshape(resolution, resolution, 3)

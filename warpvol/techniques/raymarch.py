@@ -24,10 +24,12 @@ from __future__ import annotations
 import warp as wp
 
 from .. import device as dev
-from ..geometry.camera import PinholeCamera, camera_ray
+from ..geometry.camera import camera_view
+from ..geometry.intersect import inside_box, ray_box
 from ..geometry.mesh import Surfaces, occluded, surface_hit
+from ..geometry.raster import RasterView, view_ray
 from ..media.grid import lattice_trilinear_vec3
-from ..media.volume import Media, in_scatter_at, ray_box, sigma_t_at
+from ..media.volume import Media, in_scatter_at, sigma_t_at
 from ..physics.constants import INF
 from ..physics.lights import Light, light_incident
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
@@ -68,20 +70,14 @@ def bake_light_transmittance(offset: int, m: Media, lights: wp.array(dtype=Light
     out[tid] = transmittance_rgb(marched_optical_depth(m, x, wi, 0.0, dist, st.shadow_steps))
 
 
-@wp.func
-def inside_box(x: wp.vec3, lo: wp.vec3, hi: wp.vec3) -> bool:
-    return x[0] >= lo[0] and x[1] >= lo[1] and x[2] >= lo[2] and x[0] <= hi[0] and x[1] <= hi[1] and x[2] <= hi[2]
-
-
 @wp.kernel
-def march_single_scattering(offset: int, cam: PinholeCamera, m: Media, s: Surfaces, lights: wp.array(dtype=Light),
+def march_single_scattering(offset: int, cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Light),
                             background: wp.vec3, st: MarchSettings, baked: wp.array(dtype=wp.vec3),
                             image: wp.array(dtype=wp.vec3)):
     tid = wp.tid() + offset
     px = tid % cam.width
     py = tid / cam.width
-    o = cam.origin
-    d = camera_ray(cam, float(px) + 0.5, float(py) + 0.5)
+    o, d = view_ray(cam, px, py)
     rng = wp.uint32(0)  # unused: transmittance is marched, not estimated
     hit, t_surf, n, face = surface_hit(s, o, d, INF)
     a, b = ray_box(o, d, m.all_min, m.all_max)
@@ -172,9 +168,9 @@ class Raymarch(Technique):
         scene, u = self.scene, self.uploads
         npix = scene.camera.width * scene.camera.height
         self.image = wp.empty(npix, dtype=wp.vec3, device=self.device)
-        dev.launch(march_single_scattering, npix, [pinhole(scene.camera), u.media.struct, u.surfaces, u.lights,
-                                                   wp.vec3(*scene.background), self._march_settings(), self.baked,
-                                                   self.image], self.device)
+        dev.launch(march_single_scattering, npix, [camera_view(pinhole(scene.camera)), u.media.struct, u.surfaces,
+                                                   u.lights, wp.vec3(*scene.background), self._march_settings(),
+                                                   self.baked, self.image], self.device)
 
     def output(self):
         return self.image

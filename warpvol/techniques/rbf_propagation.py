@@ -57,11 +57,13 @@ import numpy as np
 import warp as wp
 
 from .. import device as dev
-from ..geometry.camera import PinholeCamera, camera_ray
+from ..geometry.camera import camera_view
+from ..geometry.intersect import ray_box
 from ..geometry.mesh import Surfaces, surface_hit
+from ..geometry.raster import RasterView, pixel_ray
 from ..media.grid import grid_trilinear
 from ..media.rbf import CUTOFF
-from ..media.volume import Media, ray_box, sigma_t_at
+from ..media.volume import sample_extinction
 from ..physics.brdf import brdf_eval
 from ..physics.constants import INF
 from ..physics.lights import DIRECTIONAL, Light, light_incident
@@ -138,6 +140,16 @@ class Volume:
     h: wp.vec3  # cell size
 
 
+@wp.struct
+class Volumes:
+    """What the march reads: the extinction volume (EV) and the per-light optical depth
+    volumes (OPV, light l's cells from l n^3) over one ``Volume``."""
+
+    ev: wp.array(dtype=wp.vec3)
+    opv: wp.array(dtype=wp.vec3)
+    v: Volume
+
+
 @wp.func
 def cell_centre(v: Volume, i: int, j: int, k: int) -> wp.vec3:
     return v.lo + wp.cw_mul(v.h, wp.vec3(float(i) + 0.5, float(j) + 0.5, float(k) + 0.5))
@@ -152,15 +164,6 @@ def cell_index(v: Volume, i: int, j: int, k: int) -> int:
 def volume_lookup(values: wp.array(dtype=wp.vec3), base: int, v: Volume, x: wp.vec3) -> wp.vec3:
     """Trilinear between cell centres, clamped at the outer half cells; 0 outside the grid."""
     return grid_trilinear(values, base, v.n, v.lo, v.hi, x)
-
-
-@wp.kernel
-def sample_extinction_cells(offset: int, m: Media, v: Volume, ev: wp.array(dtype=wp.vec3)):
-    tid = wp.tid() + offset
-    i = tid % v.n[0]
-    j = (tid / v.n[0]) % v.n[1]
-    k = tid / (v.n[0] * v.n[1])
-    ev[tid] = sigma_t_at(m, cell_centre(v, i, j, k), False)
 
 
 @wp.kernel
@@ -326,13 +329,15 @@ def surface_optical_depth(opv: wp.array(dtype=wp.vec3), base: int, v: Volume, p:
 
 
 @wp.kernel
-def march_volumes(offset: int, cam: PinholeCamera, s: Surfaces, lights: wp.array(dtype=Light),
-                  ev: wp.array(dtype=wp.vec3), opv: wp.array(dtype=wp.vec3), v: Volume, albedo: wp.vec3,
+def march_volumes(offset: int, cam: RasterView, s: Surfaces, lights: wp.array(dtype=Light), vols: Volumes,
+                  albedo: wp.vec3,
                   phase: Phase, phase_table: wp.array(dtype=float), steps: int, background: wp.vec3,
                   image: wp.array(dtype=wp.vec3)):
     tid = wp.tid() + offset
-    o = cam.origin
-    d = camera_ray(cam, float(tid % cam.width) + 0.5, float(tid / cam.width) + 0.5)
+    o, d = pixel_ray(cam, tid)
+    ev = vols.ev
+    opv = vols.opv
+    v = vols.v
     hit, t_surf, n, face = surface_hit(s, o, d, INF)
     a, b = ray_box(o, d, v.lo, v.hi)
     ta = wp.max(a, 0.0)
@@ -408,7 +413,7 @@ class RBFPropagation(Technique):
         others = [m for m in self.scene.media if m.type != "rbf"]
         if others:
             buffers = MediaBuffers(dataclasses.replace(self.scene, media=others), self.device)
-            dev.launch(sample_extinction_cells, n**3, [buffers.struct, v, self.ev], self.device)
+            dev.launch(sample_extinction, n**3, [buffers.struct, v.lo, v.hi, v.n, self.ev], self.device)
         for m in self.scene.media:
             if m.type == "rbf" and len(m.centers):
                 centres = wp.array(np.asarray(m.centers, np.float32), dtype=wp.vec3, device=self.device)
@@ -478,8 +483,10 @@ class RBFPropagation(Technique):
         if medium is not None:  # the first medium's
             phase, table = phase_struct(medium.phase)
         phase_table = wp.array(table if len(table) else np.zeros(1, np.float32), dtype=float, device=self.device)
-        dev.launch(march_volumes, npix, [pinhole(cam), u.surfaces, u.lights, self.ev, self.opv, self.volume, albedo,
-                                         phase, phase_table, self.settings["steps"], wp.vec3(*scene.background),
+        vols = Volumes()
+        vols.ev, vols.opv, vols.v = self.ev, self.opv, self.volume
+        dev.launch(march_volumes, npix, [camera_view(pinhole(cam)), u.surfaces, u.lights, vols, albedo, phase,
+                                         phase_table, self.settings["steps"], wp.vec3(*scene.background),
                                          self.image], self.device)
 
     def output(self):
