@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warpvol.geometry.intersect import sphere_chord
+from warpvol.geometry.intersect import ray_box, ray_sphere, sphere_chord
 from warpvol.physics import airlight, phase, sphere, transmittance
 from warpvol.physics.lights import KINDS, Light, ball_mean_inverse_square, light_incident
 
@@ -282,6 +282,52 @@ def test_sphere_chord(device):
     wp.launch(eval_chord, dim=1, inputs=[wp.vec3(0, 0, 2), wp.array(dirs[:1], dtype=wp.vec3, device=device), 0.2,
                                          wp.vec3(0, 0, 2), 0.5, out], device=device)
     assert out.numpy()[0] == pytest.approx(0.2, rel=1e-6)
+
+
+@wp.kernel
+def eval_intersect(o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), c: wp.vec3, r: float, lo: wp.vec3,
+                   hi: wp.vec3, out: wp.array(dtype=wp.vec4)):
+    i = wp.tid()
+    a, b = ray_sphere(o[i], d[i], c, r)
+    ta, tb = ray_box(o[i], d[i], lo, hi)
+    out[i] = wp.vec4(a, b, ta, tb)
+
+
+def test_ray_sphere_and_box_agree_with_their_chords(device):
+    """Random unit rays: the sphere's (t_near, t_far) span is its chord (``sphere_chord`` over
+    the whole line ahead, when the origin is outside), both ends lie on the sphere, and the
+    box's span starts and ends on its surface with the midpoint inside; misses give t_near > t_far. Axis-parallel rays take the slab test's zero-direction branch."""
+    rng = np.random.default_rng(3)
+    o = rng.uniform(-3, 3, (400, 3)).astype(np.float32)
+    d = rng.normal(size=(400, 3))
+    d[:20] = np.eye(3)[rng.integers(0, 3, 20)] * rng.choice([-1, 1], (20, 1))
+    d = (d / np.linalg.norm(d, axis=1, keepdims=True)).astype(np.float32)
+    c, r, lo, hi = np.array([0.2, -0.1, 0.3]), 1.1, np.array([-1.0, -0.5, -0.7]), np.array([0.8, 1.2, 0.9])
+    out = wp.zeros(len(o), dtype=wp.vec4, device=device)
+    wp.launch(eval_intersect, dim=len(o), inputs=[wp.array(o, dtype=wp.vec3, device=device),
+                                                  wp.array(d, dtype=wp.vec3, device=device), wp.vec3(*c), r,
+                                                  wp.vec3(*lo), wp.vec3(*hi), out], device=device)
+    a, b, ta, tb = out.numpy().astype(np.float64).T
+    hit = a <= b
+    assert 20 < hit.sum() < len(o) - 20
+    for t in (a[hit], b[hit]):
+        np.testing.assert_allclose(np.linalg.norm(o[hit] + t[:, None] * d[hit] - c, axis=1), r, atol=1e-4)
+    outside = np.linalg.norm(o - c, axis=1) > r
+    chords = wp.zeros(1, dtype=float, device=device)
+    for k in np.flatnonzero(outside):
+        wp.launch(eval_chord, dim=1, inputs=[wp.vec3(*o[k]), wp.array(d[k:k + 1], dtype=wp.vec3, device=device), 1e30,
+                                             wp.vec3(*c), r, chords], device=device)
+        want = max(b[k], 0.0) - max(a[k], 0.0) if hit[k] else 0.0
+        assert chords.numpy()[0] == pytest.approx(want, abs=1e-4)
+    box = ta <= tb
+    assert 20 < box.sum() < len(o) - 20
+    for t in (ta[box], tb[box]):
+        p = o[box] + t[:, None] * d[box]
+        gap = np.maximum(np.maximum(lo - p, p - hi), 0).max(axis=1)  # distance outside the box
+        on_face = np.min(np.minimum(np.abs(p - lo), np.abs(p - hi)), axis=1)
+        assert gap.max() < 1e-4 and on_face.max() < 1e-4
+    mid = o[box] + 0.5 * (ta[box] + tb[box])[:, None] * d[box]
+    assert np.all((mid >= lo - 1e-5) & (mid <= hi + 1e-5))
 
 
 @wp.kernel
