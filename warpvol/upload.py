@@ -22,7 +22,7 @@ import warp as wp
 from . import device as dev
 from .geometry.camera import PinholeCamera
 from .geometry.mesh import Surfaces
-from .media.grid import grid_majorant
+from .media.grid import grid_majorant, majorant_grid
 from .media.particles import particle_majorant
 from .media.rbf import CUTOFF, rbf_majorant
 from .media.volume import BOX, GRID, PARTICLES, RBF, SPHERE, Media, sample_extinction
@@ -128,9 +128,11 @@ class MediaBuffers:
     def __init__(self, scene: Scene, device):
         kinds, bmin, bmax, center, radius, sigma, albedo, phases, dims, offset = ([] for _ in range(10))
         majorants, grid_chunks, point_chunks, tables = [], [], [], []
-        n_grid = n_points = n_table = 0
-        point_media = []
+        n_grid = n_points = n_table = n_majorant = 0
+        point_media, majorant_chunks, majorant_dims, majorant_offset = [], [], [], []
         for m in scene.media:
+            majorant_dims.append((1, 1, 1))
+            majorant_offset.append(0)
             ph, values = phase_struct(m.phase, n_table)
             if len(values):
                 tables.append(values)
@@ -157,6 +159,11 @@ class MediaBuffers:
                 n_grid += m.density.size
                 sigma.append(m.sigma_t_scale)
                 majorants.append(grid_majorant(m.density) * np.asarray(m.sigma_t_scale))
+                coarse = majorant_grid(m.density)
+                mz, my, mx = coarse.shape
+                majorant_dims[-1], majorant_offset[-1] = (mx, my, mz), n_majorant
+                majorant_chunks.append(coarse.ravel())
+                n_majorant += coarse.size
             else:
                 pts = m.centers if isinstance(m, RBFMedium) else m.positions
                 reach = float(CUTOFF) * m.radius if isinstance(m, RBFMedium) else m.radius
@@ -208,6 +215,10 @@ class MediaBuffers:
             self.bvhs.append(bvh)
             bvh_ids[i] = bvh.id
         s.bvh = wp.array(bvh_ids, dtype=wp.uint64, device=device)
+        s.majorant_data = wp.array(np.concatenate(majorant_chunks).astype(np.float32) if majorant_chunks
+                                   else np.zeros(1, np.float32), dtype=float, device=device)
+        s.majorant_dims = wp.array(np.asarray(majorant_dims or [(1, 1, 1)], np.int32), dtype=wp.vec3i, device=device)
+        s.majorant_offset = wp.array(np.asarray(majorant_offset or [0], np.int32), dtype=int, device=device)
         s.medium_majorant = f3([tuple(np.asarray(mj, np.float64) * np.ones(3)) for mj in majorants])
         het = [k >= int(GRID) for k in kinds]
         s.all_min, s.all_max = _union(bmin, bmax, [True] * count)

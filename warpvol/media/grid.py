@@ -11,6 +11,7 @@ import numpy as np
 import warp as wp
 
 from ..geometry.intersect import inside_box
+from ..physics.constants import INF
 
 
 @wp.func
@@ -46,6 +47,63 @@ def grid_trilinear(data: wp.array(dtype=Any), offset: int, dims: wp.vec3i, bmin:
 def grid_majorant(density: np.ndarray) -> float:
     """Trilinear interpolation never exceeds the largest sample."""
     return float(np.max(density))
+
+
+#: Majorant cells per axis at most (fewer where the grid has fewer samples).
+MAJORANT_RES = 32
+
+
+def majorant_grid(density: np.ndarray, res: int = MAJORANT_RES) -> np.ndarray:
+    """A rigorous bound of the trilinear density over each cell of a coarse grid over the same
+    bounds: (rz, ry, rx) float32, r = min(samples, ``res``) per axis, [z, y, x] like ``density``.
+    The lookup at a point blends the samples of the cell-centre lattice around it, so a coarse
+    cell's bound is the largest sample whose blending support reaches into the cell."""
+    out = np.asarray(density, np.float32)
+    for axis in range(3):
+        n = out.shape[axis]
+        r = min(n, res)
+        pieces = []
+        for a in range(r):
+            # samples blended somewhere in [a, a + 1) / r of the axis: fractional index f = x n - 0.5
+            i0 = max(int(np.floor(a * n / r - 0.5)), 0)
+            i1 = min(int(np.floor((a + 1) * n / r - 0.5)) + 1, n - 1)
+            pieces.append(np.take(out, np.arange(i0, i1 + 1), axis=axis).max(axis=axis, keepdims=True))
+        out = np.concatenate(pieces, axis=axis)
+    return out
+
+
+@wp.func
+def walk_start(lo: wp.vec3, h: wp.vec3, n: wp.vec3i, o: wp.vec3, d: wp.vec3, t: float):
+    """A 3-D DDA (Amanatides & Woo 1987) over an n-cell grid of cell size h from lo, for the
+    ray o + t d from t: (cell, step per axis, t of the next boundary per axis, t between
+    boundaries per axis). ``walk_next`` advances it."""
+    p = o + t * d
+    cell = wp.vec3i(0)
+    step = wp.vec3i(0)
+    t_next = wp.vec3(INF)
+    t_delta = wp.vec3(INF)
+    for a in range(3):
+        ci = wp.clamp(int(wp.floor((p[a] - lo[a]) / h[a])), 0, n[a] - 1)
+        cell[a] = ci
+        if d[a] > 0.0:
+            step[a] = 1
+            t_next[a] = (lo[a] + float(ci + 1) * h[a] - o[a]) / d[a]
+            t_delta[a] = h[a] / d[a]
+        elif d[a] < 0.0:
+            step[a] = -1
+            t_next[a] = (lo[a] + float(ci) * h[a] - o[a]) / d[a]
+            t_delta[a] = -h[a] / d[a]
+    return cell, step, t_next, t_delta
+
+
+@wp.func
+def walk_axis(t_next: wp.vec3) -> int:
+    """The axis whose boundary the ray crosses next."""
+    if t_next[0] <= t_next[1] and t_next[0] <= t_next[2]:
+        return 0
+    if t_next[1] <= t_next[2]:
+        return 1
+    return 2
 
 
 @wp.func

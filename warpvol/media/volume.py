@@ -11,8 +11,8 @@ closed form (a chord length; an erf), and collisions of a sum of media are the u
 independent Poisson processes: the first collision is the earliest of the components' own
 first collisions (``free_flight``), and the transmittance is the product of theirs
 (``transmittance_estimate``). Spheres and Gaussians on a ray are found through a ``wp.Bvh``
-over their boxes. Only grids are tracked (delta / ratio tracking against their own
-majorant, within their own bounds). A dense medium therefore costs what its surface costs:
+over their boxes. Only grids are tracked (delta / ratio tracking against a majorant grid
+of up to 32^3 cells, walked by a DDA, so empty regions of a grid cost a step per cell). A dense medium therefore costs what its surface costs:
 with sigma_t = 1e6 a path stops at the first sphere it enters, not after 1e6 null
 collisions per unit.
 """
@@ -22,10 +22,10 @@ from __future__ import annotations
 import warp as wp
 
 from ..geometry.intersect import inside_box, ray_box, ray_sphere
-from ..physics.constants import INF, SQRT2, SQRT_HALF_PI
+from ..physics.constants import INF, SQRT2, SQRT_HALF_PI, STREAM
 from ..physics.phase import Phase, phase_eval
 from ..physics.transmittance import transmittance_rgb
-from .grid import grid_trilinear
+from .grid import grid_trilinear, walk_axis, walk_start
 from .particles import particle_count
 from .rbf import CUTOFF, rbf_density
 
@@ -60,6 +60,9 @@ class Media:
     majorant: wp.vec3  # bound of sigma_t over all media
     het_majorant: wp.vec3  # bound of sigma_t over heterogeneous media
     medium_majorant: wp.array(dtype=wp.vec3)  # bound of sigma_t of each medium alone
+    majorant_data: wp.array(dtype=float)  # grid media: bounds of the density per coarse cell (media/grid.py)
+    majorant_dims: wp.array(dtype=wp.vec3i)  # coarse cells per axis (x, y, z)
+    majorant_offset: wp.array(dtype=int)  # first entry of a grid's coarse cells in majorant_data
     bvh: wp.array(dtype=wp.uint64)  # RBF / particle media: a BVH over the spheres' boxes (0: none)
 
 
@@ -141,29 +144,63 @@ def homogeneous_optical_depth(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: f
 
 
 @wp.func
+def grid_tracking(m: Media, i: int, o: wp.vec3, d: wp.vec3, t0: float, t1: float, sig: float, ratio: bool,
+                  rng: wp.uint32):
+    """Tracking through grid medium i on [t0, t1) against its majorant grid, walked cell by cell
+    by a DDA (an exponential step that leaves a cell restarts at its boundary: memoryless).
+
+    ``ratio`` False, delta tracking: (t of the first real collision, 1) or (t1, 0). ``ratio``
+    True, ratio tracking (Novak et al. 2014): (t1, an unbiased estimate of the transmittance),
+    with Russian roulette once the weight falls below 0.1."""
+    lo = m.bmin[i]
+    hi = m.bmax[i]
+    a, b = ray_box(o, d, lo, hi)
+    t = wp.max(a, t0)
+    t_end = wp.min(b, t1)
+    w = float(1.0)
+    if t >= t_end:
+        return t1, wp.where(ratio, 1.0, 0.0)
+    n = m.majorant_dims[i]
+    base = m.majorant_offset[i]
+    cell, step, t_next, t_delta = walk_start(lo, wp.cw_div(hi - lo, wp.vec3(float(n[0]), float(n[1]), float(n[2]))),
+                                             n, o, d, t)
+    while t < t_end:
+        seg_end = wp.min(wp.min(wp.min(t_next[0], t_next[1]), t_next[2]), t_end)
+        mu = m.majorant_data[base + (cell[2] * n[1] + cell[1]) * n[0] + cell[0]] * sig
+        while mu > 0.0:
+            t = t + (-wp.log(1.0 - wp.randf(rng))) / mu
+            if t >= seg_end:
+                break
+            real = medium_density(m, i, o + t * d) * sig / mu
+            if not ratio:
+                if wp.randf(rng) < real:
+                    return t, 1.0
+            else:
+                w *= 1.0 - real
+                if w < 0.1:  # Russian roulette keeps long thick segments short, unbiased
+                    if wp.randf(rng) < 0.5:
+                        return t1, 0.0
+                    w *= 2.0
+        t = seg_end
+        ax = walk_axis(t_next)
+        cell[ax] = cell[ax] + step[ax]
+        t_next[ax] = t_next[ax] + t_delta[ax]
+        if cell[ax] < 0 or cell[ax] >= n[ax]:
+            break
+    return t1, wp.where(ratio, w, 0.0)
+
+
+@wp.func
 def transmittance_estimate(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: float, c: int, rng: wp.uint32) -> wp.vec3:
     """Unbiased estimate of exp(-integral sigma_t) over [t0, t1] (d unit): exact for every
     medium with a closed form (``exact_optical_depth``), times ratio tracking (Novak et al.
-    2014) with Russian roulette through each grid against its own majorant."""
+    2014) with Russian roulette through each grid against its majorant grid."""
     tr = transmittance_rgb(exact_optical_depth(m, o, d, t0, t1))
     w = float(1.0)
     for i in range(m.count):
         if m.kind[i] == GRID and w > 0.0:
-            mu = m.medium_majorant[i][c]
-            sig = m.sigma[i][c]
-            a, b = ray_box(o, d, m.bmin[i], m.bmax[i])
-            t = wp.max(a, t0)
-            t_end = wp.min(b, t1)
-            while t < t_end and mu > 0.0:
-                t = t + (-wp.log(1.0 - wp.randf(rng))) / mu
-                if t >= t_end:
-                    break
-                w *= 1.0 - medium_density(m, i, o + t * d) * sig / mu
-                if w < 0.1:  # Russian roulette keeps long thick segments short, unbiased
-                    if wp.randf(rng) < 0.5:
-                        w = 0.0
-                        break
-                    w *= 2.0
+            t_end, wi = grid_tracking(m, i, o, d, t0, t1, m.sigma[i][c], True, wp.rand_init(wp.randi(rng), STREAM))
+            w *= wi
     return tr * w
 
 
@@ -244,18 +281,10 @@ def free_flight(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: float, c: int, 
                         best = t
                         who = i
             elif kind == GRID:
-                mu = m.medium_majorant[i][c]
-                a, b = ray_box(o, d, m.bmin[i], m.bmax[i])
-                t = wp.max(a, t0)
-                b = wp.min(b, best)
-                while t < b and mu > 0.0:
-                    t = t + (-wp.log(1.0 - wp.randf(rng))) / mu
-                    if t >= b:
-                        break
-                    if wp.randf(rng) * mu < medium_density(m, i, o + t * d) * sig:
-                        best = t
-                        who = i
-                        break
+                t, hit = grid_tracking(m, i, o, d, t0, best, sig, False, wp.rand_init(wp.randi(rng), STREAM))
+                if hit > 0.0:
+                    best = t
+                    who = i
             else:
                 r = m.radius[i]
                 query = wp.bvh_query_ray(m.bvh[i], o, d)
