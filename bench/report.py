@@ -247,7 +247,21 @@ def animated_section(rows: list[dict], png: Path) -> list[str]:
     return lines
 
 
-SECTIONS = {"animated": animated_section, "convergence": convergence_section, "bound": bound_section, "accuracy": accuracy_section, "scaling": scaling_section, "rules": rules_section, "paper": paper_section, "overhead": overhead_section,
+def speed_section(rows: list[dict], png: Path | None) -> list[str]:
+    lines = ["| scene | spp | seconds | paths / s | per core | image mean | Mitsuba 3 (variant) seconds | ours ÷ Mitsuba time |",
+             "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        mi = r.get("mitsuba")
+        theirs = f"{mi['seconds']:.2f} ({mi['variant']}, mean {mi['mean']:.4f})" if mi else "–"
+        ratio = f"{r['seconds'] / mi['seconds']:.2f}" if mi else "–"
+        lines.append(f"| {r['scene']} | {r['params']['spp']} | {r['seconds']:.2f} | {r['paths_per_s']:.3g} | "
+                     f"{r['paths_per_s_per_core']:.3g} | {r['mean']:.4f} | {theirs} | {ratio} |")
+    lines += ["", "A path is one camera sample of one pixel (three where extinction differs per channel: each "
+              "channel is traced alone). Times exclude a first 1-spp frame (compile, upload, BVH build)."]
+    return lines
+
+
+SECTIONS = {"animated": animated_section, "convergence": convergence_section, "bound": bound_section, "accuracy": accuracy_section, "scaling": scaling_section, "rules": rules_section, "paper": paper_section, "overhead": overhead_section, "speed": speed_section,
             "edges": edges_section, "speedup": speedup_section}
 
 

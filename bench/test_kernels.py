@@ -9,9 +9,12 @@ import pytest
 import warpvol as wv
 
 
-@pytest.mark.parametrize("scene", ["fog-box", "smoke-grid", "particle-cloud"])
+@pytest.mark.parametrize("scene", ["fog-box", "smoke-grid", "rbf-cornell", "particle-cloud", "cumulus-400"])
 def test_reference_frame(benchmark, scene):
-    s = wv.load_scene(scene)
+    """8 spp of every order of scattering; cumulus-400 is issue 14's 400-sphere cloud (80x60)."""
+    from warpvol.bench.sweeps import cumulus_scene
+
+    s = cumulus_scene() if scene == "cumulus-400" else wv.load_scene(scene)
     wv.render(s, technique="reference", spp=1)
     benchmark.pedantic(lambda: wv.render(s, technique="reference", spp=8), rounds=3, iterations=1)
 
