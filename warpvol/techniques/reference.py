@@ -64,6 +64,7 @@ class PathSettings:
     spp: int  # samples per pixel in this launch
     slots: int  # threads that share a pixel's samples
     seed: int
+    survival: float  # Russian roulette: the most a path survives an event with (after 5)
 
 
 @wp.func
@@ -195,11 +196,8 @@ def trace_path(cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Li
             L += wp.cw_mul(beta, background)
             break
         if events > 5:
-            # survive in proportion to the throughput, but at most 0.995 per event: a path
-            # in a bright, dense medium (albedo -> 1) still ends after about 200 more events,
-            # while its weight grows by 1/0.995 per event, not 1/0.95 (a cap of 0.95 made
-            # the furnace's rare long paths carry weights of 100 and more: heavy tails)
-            q = wp.min(wp.max(beta[0], wp.max(beta[1], beta[2])), 0.995)
+            # survive in proportion to the throughput, at most ``SURVIVAL`` per event
+            q = wp.min(wp.max(beta[0], wp.max(beta[1], beta[2])), st.survival)
             if wp.randf(rng) >= q:
                 break
             beta = beta / q
@@ -228,6 +226,11 @@ def trace_paths(offset: int, cam: RasterView, m: Media, s: Surfaces, lights: wp.
         total += trace_path(cam, m, s, lights, background, st, px, py, wp.rand_init(wp.randi(rng), STREAM))
     accum[tid] = accum[tid] + wp.vec3d(wp.float64(total[0]), wp.float64(total[1]), wp.float64(total[2]))
 
+
+#: Russian roulette's cap on survival per event after the fifth: a path in a bright, dense
+#: medium (albedo -> 1) ends after about 1 / (1 - SURVIVAL) more events while its weight
+#: grows by 1 / SURVIVAL per event (0.95 gave furnace paths weights of 100 and more: heavy tails).
+SURVIVAL = 0.995
 
 #: Threads a launch should keep in flight: a GPU wants hundreds of thousands (pixels x sample
 #: slots); the CPU splits one thread per pixel over its cores (``device.launch`` by work).
@@ -266,6 +269,7 @@ class Reference(Technique):
         st = PathSettings()
         st.max_events = settings["max_bounces"] if settings["max_bounces"] >= 0 else 1 << 30
         st.pixel_area = settings["pixel_area"]
+        st.survival = SURVIVAL
         cam = camera_view(pinhole(scene.camera))
         bar = tqdm(passes, desc=f"reference {spp} spp", unit="pass", delay=1.0, disable=not self.progress, leave=False)
         for i, (ch, k) in enumerate(bar):
