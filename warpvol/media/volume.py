@@ -254,6 +254,16 @@ def exact_optical_depth(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: float) 
 
 
 @wp.func
+def uniform_collision(a: float, b: float, sig: float, u: float) -> float:
+    """The first collision in a uniform medium of extinction sig on [a, b), from the uniform
+    variate u: a + E / sig with E exponential, or INF when it falls past b (or a >= b)."""
+    if a >= b:
+        return INF
+    t = a - wp.log(1.0 - u) / sig
+    return wp.where(t < b, t, INF)
+
+
+@wp.func
 def free_flight(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: float, c: int, rng: wp.uint32):
     """The first real collision on [t0, t1) along o + t d (d unit) in channel c: (t, medium),
     or (t1, -1) when there is none. The earliest of the components' own first collisions,
@@ -273,13 +283,10 @@ def free_flight(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: float, c: int, 
                     a, b = ray_box(o, d, m.bmin[i], m.bmax[i])
                 else:
                     a, b = ray_sphere(o, d, m.center[i], m.radius[i])
-                a = wp.max(a, t0)
-                b = wp.min(b, best)
-                if a < b:
-                    t = a + (-wp.log(1.0 - wp.randf(rng))) / sig
-                    if t < b:
-                        best = t
-                        who = i
+                t = uniform_collision(wp.max(a, t0), wp.min(b, best), sig, wp.randf(rng))
+                if t < best:
+                    best = t
+                    who = i
             elif kind == GRID:
                 t, hit = grid_tracking(m, i, o, d, t0, best, sig, False, wp.rand_init(wp.randi(rng), STREAM))
                 if hit > 0.0:
@@ -293,13 +300,10 @@ def free_flight(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: float, c: int, 
                     ctr = m.points[m.offset[i] + k]
                     if kind == PARTICLES:
                         a, b = ray_sphere(o, d, ctr, r)
-                        a = wp.max(a, t0)
-                        b = wp.min(b, best)
-                        if a < b:
-                            t = a + (-wp.log(1.0 - wp.randf(rng))) / sig
-                            if t < b:
-                                best = t
-                                who = i
+                        t = uniform_collision(wp.max(a, t0), wp.min(b, best), sig, wp.randf(rng))
+                        if t < best:
+                            best = t
+                            who = i
                     else:
                         tc, g, s = gaussian_on_ray(o, d, ctr, r)
                         a = wp.max(tc - s, t0)
