@@ -170,8 +170,8 @@ def digest(obj) -> str:
 
 
 #: Bumped when the reference's estimator changes, so cached images from an older one are not
-#: reused: 2 = free flight by superposition and forked random streams that do not replay
-#: their parent (version 1 was up to 4% dark in multiple scattering).
+#: reused: 2 = free flight by superposition, independent forked random streams and Russian
+#: roulette capped at 0.995 (same means, other noise).
 REFERENCE_VERSION = 2
 
 
