@@ -5,7 +5,8 @@ Per camera sample it follows a path through media and off surfaces:
 * Distance sampling by superposition: the first collision is the earliest of each medium
   component's own, sampled exactly for homogeneous shapes, particle spheres and RBF
   Gaussians and by delta tracking (Woodcock et al. 1965) in grids (``media/volume.py``).
-* In-scattered direct light along every segment by next-event estimation to every light,
+* In-scattered direct light along every segment by next-event estimation to one light, chosen
+  in proportion to its unshadowed irradiance integrated along the segment,
   combining two samples with the power heuristic (Veach 1997): equiangular sampling toward
   a point or spot light (Kulla & Fajardo 2012), whose pdf cancels the 1/d^2 of a light
   inside the medium, and exponential sampling of the majorant. Transmittance toward the
@@ -86,12 +87,46 @@ def scatter_sample(m: Media, s: Surfaces, light: Light, o: wp.vec3, d: wp.vec3, 
 
 
 @wp.func
+def segment_irradiance(light: Light, o: wp.vec3, d: wp.vec3, ta: float, tb: float) -> float:
+    """The light's unshadowed irradiance integrated along the segment [ta, tb] (grey): for a
+    point or spot light I (theta_b - theta_a) / h, the integral of I / r^2 over a line at
+    distance h (cone ignored); for a directional light E (tb - ta). What picking a light
+    for the segment's next-event estimate is proportional to."""
+    e = (light.strength[0] + light.strength[1] + light.strength[2]) / 3.0
+    if light.kind == DIRECTIONAL:
+        return e * (tb - ta)
+    delta = wp.dot(light.position - o, d)
+    h = wp.max(wp.length(light.position - (o + delta * d)), 1.0e-7)
+    return e * (wp.atan2(tb - delta, h) - wp.atan2(ta - delta, h)) / h
+
+
+@wp.func
 def segment_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), o: wp.vec3, d: wp.vec3,
                    ta: float, tb: float, c: int, rng: wp.uint32) -> wp.vec3:
-    """Direct light scattered toward -d from the media on [ta, tb] (MIS of equiangular and majorant sampling)."""
+    """Direct light scattered toward -d from the media on [ta, tb] (MIS of equiangular and majorant
+    sampling) from one light, chosen in proportion to ``segment_irradiance`` and weighted by
+    one over that probability: each light costs transmittances through the media, so a scene
+    with 8 lights pays for one per segment, mostly the one the segment passes closest to."""
     L = wp.vec3(0.0)
     mu = m.majorant[c]
+    total = float(0.0)
     for l in range(lights.shape[0]):
+        total += segment_irradiance(lights[l], o, d, ta, tb)
+    if total <= 0.0:
+        return L
+    target = wp.randf(rng) * total
+    chosen = int(-1)
+    p_chosen = float(0.0)
+    acc = float(0.0)
+    for l in range(lights.shape[0]):
+        w = segment_irradiance(lights[l], o, d, ta, tb)
+        if chosen < 0 and w > 0.0 and (acc + w >= target or l == lights.shape[0] - 1):
+            chosen = l
+            p_chosen = w / total
+        acc += w
+    if chosen < 0:
+        return L
+    for l in range(chosen, chosen + 1):
         light = lights[l]
         point_like = light.kind != DIRECTIONAL
         delta = float(0.0)
@@ -133,7 +168,7 @@ def segment_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), o: wp.v
                 if pdf_m > 0.0:
                     w = pdf_m * pdf_m / (pdf_e * pdf_e + pdf_m * pdf_m)
                     L += scatter_sample(m, s, light, o, d, ta, t, c, wp.rand_init(wp.randi(rng), STREAM)) * (w / pdf_m)
-    return L
+    return L / p_chosen
 
 
 @wp.func
