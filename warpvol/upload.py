@@ -219,7 +219,6 @@ class MediaBuffers:
                                    else np.zeros(1, np.float32), dtype=float, device=device)
         s.majorant_dims = wp.array(np.asarray(majorant_dims or [(1, 1, 1)], np.int32), dtype=wp.vec3i, device=device)
         s.majorant_offset = wp.array(np.asarray(majorant_offset or [0], np.int32), dtype=int, device=device)
-        s.medium_majorant = f3([tuple(np.asarray(mj, np.float64) * np.ones(3)) for mj in majorants])
         het = [k >= int(GRID) for k in kinds]
         s.all_min, s.all_max = _union(bmin, bmax, [True] * count)
         s.het_min, s.het_max = _union(bmin, bmax, het)

@@ -59,7 +59,6 @@ class Media:
     het_max: wp.vec3
     majorant: wp.vec3  # bound of sigma_t over all media
     het_majorant: wp.vec3  # bound of sigma_t over heterogeneous media
-    medium_majorant: wp.array(dtype=wp.vec3)  # bound of sigma_t of each medium alone
     majorant_data: wp.array(dtype=float)  # grid media: bounds of the density per coarse cell (media/grid.py)
     majorant_dims: wp.array(dtype=wp.vec3i)  # coarse cells per axis (x, y, z)
     majorant_offset: wp.array(dtype=int)  # first entry of a grid's coarse cells in majorant_data

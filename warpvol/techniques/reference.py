@@ -13,7 +13,7 @@ Per camera sample it follows a path through media and off surfaces:
   camera and the light is exact in homogeneous, particle and RBF media and ratio-tracked
   (Novak et al. 2014) in grids; surfaces occlude through a ``wp.Mesh`` query. A directional
   light has no equiangular strategy; its sample is the segment's first real collision
-  found by delta tracking, whose weight stays bounded however loose the majorant is.
+  found by free flight, whose weight stays bounded however loose the majorant is.
 * Lambertian + normalised Phong surfaces with direct light and cosine-sampled bounces;
   escaping rays see the background.
 * ``max_bounces`` counts scattering events (volume or surface): 1 is single scattering,
@@ -24,8 +24,9 @@ launches), so distance sampling stays exact per channel. Per-pixel sums go to fl
 
 A ``@wp.func`` receives the RNG state by value: its draws do not advance the caller's
 state. Every call that draws therefore gets a fresh stream, ``wp.rand_init(wp.randi(rng), STREAM)``,
-drawn inline by the caller, so no two estimates share random numbers (a product of two
-correlated transmittance estimates would be biased).
+drawn inline by the caller, so no two estimates that are multiplied share random numbers (a
+product of correlated estimates is biased). The one sharing on purpose: a segment's direct
+light and its free flight, which are only summed (common random numbers, less variance).
 """
 
 from __future__ import annotations
@@ -109,66 +110,61 @@ def segment_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), o: wp.v
     with 8 lights pays for one per segment, mostly the one the segment passes closest to."""
     L = wp.vec3(0.0)
     mu = m.majorant[c]
+    # one pass of weighted reservoir sampling: light l replaces the choice with probability
+    # w_l / (sum of weights so far), which leaves each light chosen with w_l / total
     total = float(0.0)
-    for l in range(lights.shape[0]):
-        total += segment_irradiance(lights[l], o, d, ta, tb)
-    if total <= 0.0:
-        return L
-    target = wp.randf(rng) * total
     chosen = int(-1)
-    p_chosen = float(0.0)
-    acc = float(0.0)
+    w_chosen = float(0.0)
     for l in range(lights.shape[0]):
         w = segment_irradiance(lights[l], o, d, ta, tb)
-        if chosen < 0 and w > 0.0 and (acc + w >= target or l == lights.shape[0] - 1):
+        total += w
+        if w > 0.0 and wp.randf(rng) * total < w:
             chosen = l
-            p_chosen = w / total
-        acc += w
+            w_chosen = w
     if chosen < 0:
         return L
-    for l in range(chosen, chosen + 1):
-        light = lights[l]
-        point_like = light.kind != DIRECTIONAL
-        delta = float(0.0)
-        h = float(1.0)
-        th_a = float(0.0)
-        th_b = float(0.0)
-        if point_like:
-            delta = wp.dot(light.position - o, d)
-            h = wp.max(wp.length(light.position - (o + delta * d)), 1.0e-7)
-            th_a = wp.atan2(ta - delta, h)
-            th_b = wp.atan2(tb - delta, h)
-            if th_b - th_a > 1.0e-12:
-                t = delta + h * wp.tan(th_a + (th_b - th_a) * wp.randf(rng))
-                t = wp.clamp(t, ta, tb)
+    light = lights[chosen]
+    point_like = light.kind != DIRECTIONAL
+    delta = float(0.0)
+    h = float(1.0)
+    th_a = float(0.0)
+    th_b = float(0.0)
+    if point_like:
+        delta = wp.dot(light.position - o, d)
+        h = wp.max(wp.length(light.position - (o + delta * d)), 1.0e-7)
+        th_a = wp.atan2(ta - delta, h)
+        th_b = wp.atan2(tb - delta, h)
+        if th_b - th_a > 1.0e-12:
+            t = delta + h * wp.tan(th_a + (th_b - th_a) * wp.randf(rng))
+            t = wp.clamp(t, ta, tb)
+            pdf_e = h / ((th_b - th_a) * (h * h + (t - delta) * (t - delta)))
+            pdf_m = mu * wp.exp(-mu * (t - ta))
+            w = pdf_e * pdf_e / (pdf_e * pdf_e + pdf_m * pdf_m)
+            L += scatter_sample(m, s, light, o, d, ta, t, c, wp.rand_init(wp.randi(rng), STREAM)) * (w / pdf_e)
+    if mu > 0.0 and not point_like:
+        # a directional light has no equiangular strategy to share the segment with, and
+        # majorant sampling alone weighs a sample by e^(mu t): unbounded where a loose
+        # majorant meets sparse media (particle clouds). The segment's first real
+        # collision has pdf sigma_t T; choosing the medium i it belongs to with
+        # probability sigma_i / sigma_t leaves the estimate albedo_i p_i E T_l.
+        t, i = free_flight(m, o, d, ta, tb, c, wp.rand_init(wp.randi(rng), STREAM))
+        if i >= 0:
+            x = o + t * d
+            wi, dist, e = light_incident(light, x)
+            fs = m.albedo[i] * phase_eval(m.phase[i], m.phase_table, wp.dot(d, wi))
+            tl = light_transmittance(m, s, x, wi, dist, c, wp.rand_init(wp.randi(rng), STREAM), 0)
+            L += wp.cw_mul(wp.cw_mul(fs, e), tl)
+    elif mu > 0.0:
+        t = ta - wp.log(1.0 - wp.randf(rng)) / mu
+        if t < tb:
+            pdf_m = mu * wp.exp(-mu * (t - ta))
+            pdf_e = float(0.0)
+            if point_like and th_b - th_a > 1.0e-12:
                 pdf_e = h / ((th_b - th_a) * (h * h + (t - delta) * (t - delta)))
-                pdf_m = mu * wp.exp(-mu * (t - ta))
-                w = pdf_e * pdf_e / (pdf_e * pdf_e + pdf_m * pdf_m)
-                L += scatter_sample(m, s, light, o, d, ta, t, c, wp.rand_init(wp.randi(rng), STREAM)) * (w / pdf_e)
-        if mu > 0.0 and not point_like:
-            # a directional light has no equiangular strategy to share the segment with, and
-            # majorant sampling alone weighs a sample by e^(mu t): unbounded where a loose
-            # majorant meets sparse media (particle clouds). The segment's first real
-            # collision has pdf sigma_t T; choosing the medium i it belongs to with
-            # probability sigma_i / sigma_t leaves the estimate albedo_i p_i E T_l.
-            t, i = free_flight(m, o, d, ta, tb, c, wp.rand_init(wp.randi(rng), STREAM))
-            if i >= 0:
-                x = o + t * d
-                wi, dist, e = light_incident(light, x)
-                fs = m.albedo[i] * phase_eval(m.phase[i], m.phase_table, wp.dot(d, wi))
-                tl = light_transmittance(m, s, x, wi, dist, c, wp.rand_init(wp.randi(rng), STREAM), 0)
-                L += wp.cw_mul(wp.cw_mul(fs, e), tl)
-        elif mu > 0.0:
-            t = ta - wp.log(1.0 - wp.randf(rng)) / mu
-            if t < tb:
-                pdf_m = mu * wp.exp(-mu * (t - ta))
-                pdf_e = float(0.0)
-                if point_like and th_b - th_a > 1.0e-12:
-                    pdf_e = h / ((th_b - th_a) * (h * h + (t - delta) * (t - delta)))
-                if pdf_m > 0.0:
-                    w = pdf_m * pdf_m / (pdf_e * pdf_e + pdf_m * pdf_m)
-                    L += scatter_sample(m, s, light, o, d, ta, t, c, wp.rand_init(wp.randi(rng), STREAM)) * (w / pdf_m)
-    return L / p_chosen
+            if pdf_m > 0.0:
+                w = pdf_m * pdf_m / (pdf_e * pdf_e + pdf_m * pdf_m)
+                L += scatter_sample(m, s, light, o, d, ta, t, c, wp.rand_init(wp.randi(rng), STREAM)) * (w / pdf_m)
+    return L * (total / w_chosen)
 
 
 @wp.func
