@@ -17,12 +17,18 @@ directions, between particles that see each other along them. Stages:
   k directions per frame, round robin, and keeps the other directions' links from earlier
   frames (positions, extinction and direct light are always current).
 * ``direct`` (reads the lights): each particle's irradiance from each light, averaged over
-  its sphere: the inverse square's ball mean (bounded for a light inside it), the exact
-  transmittance to the light through the union of spheres (chord lengths, overlaps add),
-  averaged over ``light_samples`` points of the sphere: a thick particle is lit on its rim,
-  not at its centre. With one sample: from the centre through the other spheres, times
-  its own sphere's mean self-shadowing (the escape probability
-  3/(8 tau^3) [2 tau^2 - 1 + (1 + 2 tau) e^(-2 tau)], tau = sigma_t r).
+  its sphere: the inverse square's ball mean (bounded for a light inside it) times the
+  transmittance to the light through the union of spheres (overlaps add), averaged over
+  ``light_samples`` points of the sphere: a thick particle is lit on its rim, not at its
+  centre. The transmittance comes from the shared light pass (media/lightpass.py): the
+  cloud rendered once from each light into depth slices (``light_pass = 1``, as papers/004
+  does) or a Fourier opacity map (2), O(N x footprint) per light instead of every sphere
+  against every light ray, and checked against the exact chord sums on 128 particles (the
+  exact answer is used instead when the map is off by more than ``light_tolerance``);
+  ``light_pass = 0`` is the exact answer throughout (BVH ray queries). With one sample:
+  from the centre through the other spheres, times its own sphere's mean self-shadowing
+  (the escape probability 3/(8 tau^3) [2 tau^2 - 1 + (1 + 2 tau) e^(-2 tau)], tau =
+  sigma_t r).
 * ``emission``: E[vp, i] = alpha a sum_lights c_l p(w_light . w_i) E_light T_light, the
   light the segment of vp scatters into direction i. The paper snaps the light to the
   nearest sample direction; we evaluate the phase function at the light's own direction.
@@ -79,12 +85,12 @@ from .. import device as dev
 from ..geometry.camera import camera_view
 from ..geometry.intersect import ray_sphere, sphere_chord
 from ..geometry.raster import RasterView, pixel_ray
-from ..media.particles import ParticleBuffers, Particles, particle_sigma_t, particle_transmittance
+from ..media.lightpass import REPRESENTATIONS, LightPass
+from ..media.particles import ParticleBuffers, Particles, particle_sigma_t
 from ..physics.constants import INV_4PI, PI
-from ..physics.lights import DIRECTIONAL, Light, particle_incident
 from ..physics.phase import Phase, orthonormal_basis, phase_eval, phase_struct
 from ..physics.sphere import fibonacci_directions
-from ..physics.transmittance import sphere_escape, step_integral, step_integral_rgb, transmittance_rgb
+from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Setting, SettingsError, Stage, Technique
 from ..upload import SceneUploads, pinhole
 
@@ -100,7 +106,14 @@ SETTINGS = {
                                    "conserving for any lobe) and each light's emission normalised over the D "
                                    "directions; 0: the paper's weights 4 pi / D (diverges for peaked lobes, "
                                    "e.g. HG g >= 0.9 at D = 128)"),
-    "light_samples": Setting(4, 1, 1024, "points of a sphere whose transmittance to a light is averaged (1: centre)"),
+    "light_samples": Setting(16, 1, 1024, "points of a sphere whose transmittance to a light is averaged (1: centre)"),
+    "light_pass": Setting(1, 0, 2, "transmittance to the lights: 0 exact (BVH ray queries), 1 depth slices, "
+                                   "2 Fourier opacity map (media/lightpass.py)"),
+    "light_slices": Setting(32, 1, 1024, "depth slices S of the light pass"),
+    "light_terms": Setting(16, 1, 256, "Fourier terms K of the light pass"),
+    "light_texels": Setting(0, 0, 1024, "light-pass texels per face side; 0: 4 R / r (half a median radius)"),
+    "light_tolerance": Setting(0.1, 0.0, 10.0, "fall back to exact when the map's relative RMSE against it, "
+                                               "measured on 128 particles, is above this; 0: never check"),
     "splat_steps": Setting(0, 0, 4096, "0: splat spheres sorted by depth; S: march S steps through overlapping ones"),
     "refresh": Setting(0, 0, 4096, "when the medium changes, re-peel this many directions (round robin; 0: all)"),
 }
@@ -188,68 +201,6 @@ def link_network(offset: int, keys: wp.array(dtype=wp.int64), values: wp.array(d
     if vp >= 0:
         dist = wp.max(wp.dot(pos[p] - pos[vp], dirs[i]), 0.0)
         alpha[vp * D + i] = wp.vec3(1.0) - transmittance_rgb(tau[vp] * dist)
-
-
-@wp.func
-def self_shadow(tau: float, inside: bool) -> float:
-    """A particle's mean transmittance of its own sphere (optical radius tau) to the light that
-    reaches it: the escape probability for light from outside (exact for a directional light),
-    (1 - e^-tau) / tau, exact at the centre, for a point light inside it."""
-    if inside:
-        return step_integral(tau, 1.0)
-    return sphere_escape(tau)
-
-
-@wp.func
-def ball_point(j: int, k: int, r: float) -> wp.vec3:
-    """Point j of k spread evenly over a ball of radius r about the origin: golden-spiral
-    directions (z = 1 - 2 (j + 1/2) / k) at equal-volume radii r v^(1/3), v = frac(j / phi)
-    (an independent low-discrepancy sequence, so radius and direction do not correlate)."""
-    u = (float(j) + 0.5) / float(k)
-    z = 1.0 - 2.0 * u
-    ring = wp.sqrt(wp.max(0.0, 1.0 - z * z))
-    phi = 2.39996323 * (float(j) + 0.5)
-    v = (float(j) + 0.5) * 0.61803398875
-    v = v - wp.floor(v)
-    return r * wp.pow(v, 1.0 / 3.0) * wp.vec3(ring * wp.cos(phi), z, ring * wp.sin(phi))
-
-
-@wp.kernel
-def light_arrival(offset: int, P: Particles, lights: wp.array(dtype=Light), samples: int,
-                  direct: wp.array(dtype=wp.vec3), travel: wp.array(dtype=wp.vec3)):
-    """Thread p L + l: light l's irradiance averaged over particle p's sphere: the ball mean
-    of the inverse square times the transmittance to the light through every sphere (its
-    own included), averaged over ``samples`` points of the sphere; with one sample, from the
-    centre through the others times its own mean self-shadowing."""
-    tid = wp.tid() + offset
-    n_l = lights.shape[0]
-    p = tid / n_l
-    r = P.radius[p]
-    x_p = P.centres[p]
-    light = lights[tid % n_l]
-    w, dist, e = particle_incident(light, x_p, r)
-    tr = wp.vec3(1.0)
-    if wp.length_sq(w) > 0.0:
-        if samples <= 1:
-            s = P.sigma_t[p] * r
-            inside = dist < r
-            own = wp.vec3(self_shadow(s[0], inside), self_shadow(s[1], inside), self_shadow(s[2], inside))
-            tr = wp.cw_mul(particle_transmittance(P, p, x_p, -w, dist), own)
-        else:
-            acc = wp.vec3(0.0)
-            for j in range(samples):
-                x = x_p + ball_point(j, samples, r)
-                wj = w
-                dj = dist
-                if light.kind != DIRECTIONAL:
-                    to = x - light.position
-                    dj = wp.length(to)
-                    if dj > 0.0:
-                        wj = to / dj
-                acc += particle_transmittance(P, -1, x, -wj, dj)
-            tr = acc / float(samples)
-    direct[tid] = wp.cw_mul(e, tr)
-    travel[tid] = w
 
 
 @wp.func
@@ -621,6 +572,7 @@ class IlluminationNetwork(Technique):
         self.p_max = 0.0
         # direct and emission stages
         self.direct = self.travel = self.light_weight = None
+        self.light_pass: LightPass | None = None  # its map, measured error and fallback
         # iterate stage
         self.I = self.I_next = self.E = self.S = None
         self.scale = 1.0
@@ -637,7 +589,9 @@ class IlluminationNetwork(Technique):
         return self.uploads.stages() + [
             Stage("network", self._network, reads=("medium",),
                   settings=("directions", "window", "half", "phase_norm", "refresh")),
-            Stage("direct", self._direct, reads=("lights",), settings=("light_samples",), after=("network", "lights"),
+            Stage("direct", self._direct, reads=("lights",),
+                  settings=("light_samples", "light_pass", "light_slices", "light_terms", "light_texels",
+                            "light_tolerance"), after=("network", "lights"),
                   needed=lights),
             Stage("emission", self._emission, after=("network", "direct"), settings=("half", "phase_norm")),
             Stage("iterate", self._iterate, reads=("background",), settings=("iterations", "tolerance", "warm"),
@@ -724,12 +678,18 @@ class IlluminationNetwork(Technique):
         self.P = wp.array(P.astype(np.float32).reshape(Dp, Dp // 16, 16), dtype=vec16, device=self.device)
 
     def _direct(self):
+        """Each particle's light through the shared light pass (media/lightpass.py): a map per
+        light, O(N x footprint), read at ``light_samples`` points of each sphere."""
+        s = self.settings
         n, L = self._n, len(self.scene.lights)
         self.direct = wp.zeros(max(n * L, 1), dtype=wp.vec3, device=self.device)
         self.travel = wp.zeros(max(n * L, 1), dtype=wp.vec3, device=self.device)
-        if n:
-            dev.launch(light_arrival, n * L, [self.particles, self.uploads.lights, self.settings["light_samples"],
-                                              self.direct, self.travel], self.device, min_split=256)
+        self.light_pass = LightPass(self.device, REPRESENTATIONS[s["light_pass"]], slices=s["light_slices"],
+                                    terms=s["light_terms"], texels=s["light_texels"], tolerance=s["light_tolerance"],
+                                    check_particles=128)
+        if n and L:
+            self.light_pass.build(self._particles, self.uploads.lights, s["light_samples"])
+            self.light_pass.direct(self._particles, self.uploads.lights, s["light_samples"], self.direct, self.travel)
 
     def _emission(self):
         n, D, L = self._n, self.D, len(self.scene.lights)
