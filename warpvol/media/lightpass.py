@@ -426,6 +426,14 @@ def subset_light(offset: int, P: Particles, lights: wp.array(dtype=Light), m: Li
     out[tid] = sphere_transmittance(m, P, which[tid / n_l], l, lights[l], samples)
 
 
+@wp.kernel
+def points_depth(offset: int, P: Particles, lights: wp.array(dtype=Light), m: LightMap, l: int,
+                 points: wp.array(dtype=wp.vec3), out: wp.array(dtype=wp.vec3)):
+    """Optical depth from light l to each point (the whole cloud counted)."""
+    tid = wp.tid() + offset
+    out[tid] = optical_depth_to_light(m, P, -1, l, lights[l], points[tid])
+
+
 def _unit(v) -> np.ndarray:
     v = np.asarray(v, np.float64)
     return v / np.linalg.norm(v)
@@ -554,6 +562,17 @@ class LightPass:
             dev.launch(subset_light, which.shape[0] * L, [cloud.struct, lights, m or self.map, samples, which, out],
                        self.device, min_split=256)
         return out.numpy()[: which.shape[0] * L].reshape(which.shape[0], L, 3)
+
+    def optical_depth(self, cloud: ParticleBuffers, lights: wp.array, light: int, points: np.ndarray,
+                      m: LightMap | None = None) -> np.ndarray:
+        """(n, 3) optical depth from light ``light`` to each of ``points`` (n, 3), from map ``m``
+        (default: the one built)."""
+        pts = wp.array(np.asarray(points, np.float32).reshape(-1, 3), dtype=wp.vec3, device=self.device)
+        out = wp.zeros(max(pts.shape[0], 1), dtype=wp.vec3, device=self.device)
+        if pts.shape[0]:
+            dev.launch(points_depth, pts.shape[0], [cloud.struct, lights, m or self.map, int(light), pts, out],
+                       self.device)
+        return out.numpy()[: pts.shape[0]]
 
     def direct(self, cloud: ParticleBuffers, lights: wp.array, samples: int, direct: wp.array, travel: wp.array):
         """Every (particle p, light l) at p L + l: irradiance averaged over the sphere into
