@@ -41,8 +41,9 @@ directions, between particles that see each other along them. Stages:
       I[p, i] = (1 - alpha) I[vp, i] + E[vp, i] + alpha a (4 pi / D) sum_d I[vp, d] P(w_d, w_i)
 
   and the sky radiance (the scene background) where no particle is seen. The sum is one
-  batched matrix product S = I P over all particles (N D^2 multiply-adds per channel), the
-  update a gather from S. The phase matrix is tabulated once (D x D), so any phase function
+  batched matrix product S = I P over all particles (N D^2 multiply-adds per channel) whose
+  epilogue forms what each particle sends on, Q = (1 - alpha) I + E + alpha a S, row by row;
+  the update is then a gather of Q (one read per link instead of six scattered ones). The phase matrix is tabulated once (D x D), so any phase function
   works: the scene's ``hg`` is true Henyey-Greenstein, its ``cornette_shanks`` the formula
   the paper prints (and calls Henyey-Greenstein). The paper's weights 4 pi / D p(w_d . w_i)
   (``phase_norm = 0``) conserve energy only while the lobe is wide against the directions'
@@ -88,6 +89,7 @@ from ..geometry.raster import RasterView, pixel_ray
 from ..media.lightpass import REPRESENTATIONS, LightPass
 from ..media.particles import ParticleBuffers, Particles, particle_sigma_t
 from ..physics.constants import INV_4PI, PI
+from ..physics.lights import DIRECTIONAL, Light
 from ..physics.phase import Phase, orthonormal_basis, phase_eval, phase_struct
 from ..physics.sphere import fibonacci_directions
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
@@ -213,10 +215,18 @@ def phase_toward(ph: Phase, table: wp.array(dtype=float), w_in: wp.vec3, w_out: 
 
 @wp.kernel
 def light_weights(offset: int, dirs: wp.array(dtype=wp.vec3), travel: wp.array(dtype=wp.vec3), ph: Phase,
-                  table: wp.array(dtype=float), normalise: int, out: wp.array(dtype=float)):
+                  table: wp.array(dtype=float), normalise: int, lights: wp.array(dtype=Light), share: int,
+                  out: wp.array(dtype=float)):
     """Thread p L + l: c = 1 / ((4 pi / D) sum_i p(w_l . w_i)) with ``normalise`` (the D
-    directions then carry exactly what the particle scatters of light l), else 1."""
+    directions then carry exactly what the particle scatters of light l), else 1. With
+    ``share``, a directional light's c (the same travel direction for every particle) is
+    copied from particle 0's, which a launch over the first L threads computed."""
     tid = wp.tid() + offset
+    L = lights.shape[0]
+    if share != 0 and lights[tid % L].kind == DIRECTIONAL:
+        if tid >= L:
+            out[tid] = out[tid % L]
+        return
     D = dirs.shape[0]
     c = float(1.0)
     if normalise != 0:
@@ -262,8 +272,12 @@ def phase_matrix(offset: int, dirs: wp.array(dtype=wp.vec3), ph: Phase, table: w
 
 
 @wp.kernel
-def scatter_matmul(offset: int, I: wp.array2d(dtype=Any), P: wp.array2d(dtype=vec16), S: wp.array2d(dtype=float)):
-    """S = I P: thread (row block, column block) accumulates 4 rows x 16 columns."""
+def scatter_matmul(offset: int, I: wp.array2d(dtype=Any), P: wp.array2d(dtype=vec16), E: wp.array2d(dtype=Any),
+                   alpha: wp.array(dtype=wp.vec3), albedo: wp.array(dtype=wp.vec3), n: int, D: int,
+                   Q: wp.array2d(dtype=float)):
+    """S = I P, thread (row block, column block) accumulating 4 rows x 16 columns, and in the
+    same pass what particle vp sends on along each direction i (row 3 vp + c):
+    Q = (1 - alpha) I + E + alpha a S. The update is then a gather of Q alone."""
     tid = wp.tid() + offset
     nb = P.shape[1]
     r = (tid / nb) * 4
@@ -279,35 +293,42 @@ def scatter_matmul(offset: int, I: wp.array2d(dtype=Any), P: wp.array2d(dtype=ve
         a2 += float(I[r + 2, d]) * pd
         a3 += float(I[r + 3, d]) * pd
     c0 = b * 16
-    for j in range(16):
-        S[r, c0 + j] = a0[j]
-        S[r + 1, c0 + j] = a1[j]
-        S[r + 2, c0 + j] = a2[j]
-        S[r + 3, c0 + j] = a3[j]
+    for k in range(4):
+        row = r + k
+        vp = row / 3
+        c = row % 3
+        if vp < n:
+            acc = a0
+            if k == 1:
+                acc = a1
+            elif k == 2:
+                acc = a2
+            elif k == 3:
+                acc = a3
+            al = albedo[vp][c]
+            for j in range(16):
+                i = c0 + j
+                if i < D:
+                    a = alpha[vp * D + i][c]
+                    Q[row, i] = (1.0 - a) * float(I[row, i]) + float(E[row, i]) + a * al * acc[j]
 
 
 @wp.kernel
-def gather_update(offset: int, V: wp.array(dtype=int), alpha: wp.array(dtype=wp.vec3), albedo: wp.array(dtype=wp.vec3),
-                  E: wp.array2d(dtype=Any), I: wp.array2d(dtype=Any), S: wp.array2d(dtype=float), sky: wp.vec3,
-                  D: int, out: wp.array2d(dtype=Any)):
-    """The paper's update of I[p, i] from the upstream particle vp = V[p, i] (sky if none),
-    for 16 directions i of particle p per thread."""
+def gather_update(offset: int, V: wp.array(dtype=int), Q: wp.array2d(dtype=float), sky: wp.vec3, D: int,
+                  out: wp.array2d(dtype=Any)):
+    """The paper's update: I[p, i] = Q[vp, i] from the upstream particle vp = V[p, i], the sky
+    if there is none; 16 directions i of particle p per thread."""
     tid = wp.tid() + offset
     blocks = (D + 15) / 16
     p = tid / blocks
     i0 = (tid % blocks) * 16
     for i in range(i0, wp.min(i0 + 16, D)):
         vp = V[p * D + i]
-        if vp < 0:
-            for c in range(3):
-                out[3 * p + c, i] = out.dtype(sky[c])
-        else:
-            a = alpha[vp * D + i]
-            al = albedo[vp]
-            for c in range(3):
-                r = 3 * vp + c
-                v = (1.0 - a[c]) * float(I[r, i]) + float(E[r, i]) + a[c] * al[c] * S[r, i]
-                out[3 * p + c, i] = out.dtype(v)
+        for c in range(3):
+            v = sky[c]
+            if vp >= 0:
+                v = Q[3 * vp + c, i]
+            out[3 * p + c, i] = out.dtype(v)
 
 
 @wp.kernel
@@ -500,8 +521,8 @@ def composite_march(offset: int, cam: RasterView, P: Particles, radiance: wp.arr
 for _t in (wp.float32, wp.float16):
     _a = wp.array2d(dtype=_t)
     wp.overload(emission_network, {"E": _a})
-    wp.overload(scatter_matmul, {"I": _a})
-    wp.overload(gather_update, {"E": _a, "I": _a, "out": _a})
+    wp.overload(scatter_matmul, {"I": _a, "E": _a})
+    wp.overload(gather_update, {"out": _a})
     wp.overload(change_norms, {"I_new": _a, "I_old": _a})
     wp.overload(rescale, {"I": _a})
     wp.overload(outgoing_radiance, {"I": _a})
@@ -706,9 +727,10 @@ class IlluminationNetwork(Technique):
         if n:
             self.light_weight = wp.empty(max(n * L, 1), dtype=float, device=self.device)
             if L:
-                dev.launch(light_weights, n * L, [self.dirs, self.travel, self.phase, self.table,
-                                                  self.settings["phase_norm"], self.light_weight], self.device,
-                           min_split=256)
+                w_args = [self.dirs, self.travel, self.phase, self.table, self.settings["phase_norm"],
+                          self.uploads.lights]
+                dev.launch(light_weights, L, [*w_args, 0, self.light_weight], self.device)
+                dev.launch(light_weights, n * L, [*w_args, 1, self.light_weight], self.device, min_split=256)
             dev.launch(emission_network, n * D, [self.dirs, self._direct_light(), self.particles.albedo, self.alpha,
                                                  self.phase, self.table, 1.0 / self.scale, self.E], self.device)
         if not self.settings["warm"]:
@@ -745,10 +767,10 @@ class IlluminationNetwork(Technique):
         n, D, device = self._n, self.D, self.device
         if n:
             S = self.S
-            dev.launch(scatter_matmul, self.rows // ROWS * (self.Dp // 16), [self.I, self.P, S], device, min_split=64)
+            dev.launch(scatter_matmul, self.rows // ROWS * (self.Dp // 16),
+                       [self.I, self.P, self.E, self.alpha, self.particles.albedo, n, D, S], device, min_split=64)
             sky = wp.vec3(*(np.asarray(self.scene.background, np.float64) / self.scale))
-            dev.launch(gather_update, n * (-(-D // 16)),
-                       [self.V, self.alpha, self.particles.albedo, self.E, self.I, S, sky, D, self.I_next], device)
+            dev.launch(gather_update, n * (-(-D // 16)), [self.V, S, sky, D, self.I_next], device)
         if measure is None:
             measure = self.settings["tolerance"] > 0.0
         change = float("nan")
