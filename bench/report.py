@@ -100,6 +100,25 @@ def accuracy_section(rows: list[dict], png: Path) -> list[str]:
     return lines
 
 
+def _n_exponents(rows: list[dict]) -> list[str]:
+    """The frame's and each stage's fitted exponent in N over the rows that vary N alone."""
+    d0 = rows[0]["params"].get("directions")
+    rs = [r for r in rows if set(r["params"]) == {"particles", "directions"} and r["params"]["directions"] == d0]
+    if len(rs) < 3:
+        return []
+    n = np.array([r["params"]["particles"] for r in rs], float)
+    big = n >= 2048
+    out = ["", f"Cost in N at D = {d0} (least squares of log ms against log N; 1 is linear, 2 quadratic):", ""]
+    series = {"frame": [r["median_ms"] for r in rs]}
+    for stage in ("direct", "emission", "iterate", "splat"):
+        series[stage] = [r["stages"].get(stage, {}).get("median_ms", np.nan) for r in rs]
+    for name, ms in series.items():
+        ms = np.array(ms, float)
+        tail = f", {fitted_exponent(n[big], ms[big]):.2f} from N = 2048 up" if big.sum() >= 2 else ""
+        out.append(f"- {name}: N^**{fitted_exponent(n, ms):.2f}** over N = {n.min():.0f}..{n.max():.0f}{tail}")
+    return out
+
+
 def paper_section(rows: list[dict], png: Path) -> list[str]:
     ours = [1000.0 / r["median_ms"] for r in rows]
     paper = [r["paper"] if isinstance(r.get("paper"), (int, float)) else None for r in rows]
@@ -120,6 +139,8 @@ def paper_section(rows: list[dict], png: Path) -> list[str]:
         lines += ["", f"FP32 peak taken as {rows[0]['peak_gflops']:.0f} GFLOP/s (for a CPU: cores × clock × SIMD "
                   "lanes × 2, one FMA unit per core; for a GPU the vendor's figure). One iteration is "
                   "2·3·N·D² flops (the product S = I·P; the gather is not counted)."]
+    if it:
+        lines += _n_exponents(rows)
     plt = _plt()
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     x = np.arange(len(rows))
@@ -129,6 +150,30 @@ def paper_section(rows: list[dict], png: Path) -> list[str]:
     ax.set_xticks(x, [_params(r) for r in rows], rotation=30, ha="right", fontsize=7)
     ax.set(ylabel="FPS ÷ first row", title=rows[0]["sweep"])
     _save(fig, ax, png, grid=False)
+    return lines
+
+
+def lightpass_section(rows: list[dict], png: Path) -> list[str]:
+    lines = ["| parameters | texels M | direct ms (2 suns) | direct light, relative RMSE to the exact sphere mean | "
+             "image moves by (relative RMSE to the exact-direct image) | image vs reference (its noise removed) |",
+             "|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {_params(r)} | {r['texels'] or '–'} | {r['direct_ms']:.2f} | {r['direct_rel_rmse']:.4f} | "
+                     f"{r['image_move']:.4f} | {r['rel_rmse_corrected']:.4f} |")
+    floor = rows[0]["reference"]["rel_rmse_floor"]
+    lines += ["", "The exact sphere mean: light_pass = 0 at 256 points a sphere. light_pass 0 = exact (BVH ray "
+              "queries), 1 = depth slices, 2 = Fourier opacity map; the first row is the direct stage as it was "
+              f"before the light pass. Reference: {rows[0]['reference']['spp']} spp, its own noise a relative RMSE "
+              f"of {floor:.4f} (removed in quadrature)."]
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    for kind, label in ((0, "exact (points a sphere)"), (1, "depth slices S"), (2, "Fourier terms K")):
+        rs = [r for r in rows if r["params"].get("light_pass") == kind]
+        if rs:
+            ax.plot([r["direct_ms"] for r in rs], [r["direct_rel_rmse"] for r in rs], "o-", ms=4, label=label)
+    ax.set(xscale="log", yscale="log", xlabel="direct stage ms (2 suns)",
+           ylabel="direct light: relative RMSE to the exact mean", title=f"{rows[0]['sweep']} — {rows[0]['device']}")
+    _save(fig, ax, png)
     return lines
 
 
@@ -262,7 +307,7 @@ def speed_section(rows: list[dict], png: Path | None) -> list[str]:
 
 
 SECTIONS = {"animated": animated_section, "convergence": convergence_section, "bound": bound_section, "accuracy": accuracy_section, "scaling": scaling_section, "rules": rules_section, "paper": paper_section, "overhead": overhead_section, "speed": speed_section,
-            "edges": edges_section, "speedup": speedup_section}
+            "edges": edges_section, "speedup": speedup_section, "lightpass": lightpass_section}
 
 
 def write_report(out: Path, name: str) -> Path | None:

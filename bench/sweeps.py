@@ -472,7 +472,7 @@ def _network_frame(params: dict, device: str, quick: bool) -> dict:
 def _network_sweep_grid(quick: bool) -> list[dict]:
     if quick:
         return [{"particles": 64, "directions": 16}, {"particles": 128, "directions": 32}]
-    return ([{"particles": n, "directions": 128} for n in (256, 512, 1024, 2048, 4096, 8192)]
+    return ([{"particles": n, "directions": 128} for n in (256, 512, 1024, 2048, 4096, 8192, 16384)]
             + [{"particles": 1024, "directions": d} for d in (32, 64, 256, 512)]
             + [{"particles": 1024, "directions": 128, "window": m} for m in (32, 128)])
 
@@ -543,6 +543,59 @@ def _network_accuracy(params: dict, device: str, quick: bool) -> dict:
     row["reference"] = {"spp": 2 * (16 if quick else 128), "max_bounces": -1, "pixel_area": 0,
                         "rel_rmse_floor": floor}
     row["scene"] = f"{params['particles']} particles {w}x{w}"
+    return row
+
+
+def _lightpass_grid(quick: bool) -> list[dict]:
+    """The old default (exact, 4 points a sphere), exact at more points, and each map
+    representation over its resolution, read at 16 points a sphere."""
+    if quick:
+        return [{"light_pass": 0, "light_samples": 4}, {"light_pass": 1, "light_slices": 8, "light_samples": 16}]
+    return ([{"light_pass": 0, "light_samples": k} for k in (4, 16, 64)]
+            + [{"light_pass": 1, "light_slices": s, "light_samples": 16} for s in (4, 8, 16, 32, 64)]
+            + [{"light_pass": 1, "light_slices": 32, "light_samples": 4}]
+            + [{"light_pass": 2, "light_terms": k, "light_samples": 16} for k in (4, 8, 16, 32)])
+
+
+_LIGHTPASS_TRUTH: dict = {}
+
+
+def _lightpass_truth(scene, device: str, quick: bool):
+    """The direct light with exact transmittance averaged over 256 points of each sphere
+    (light_pass = 0), and the converged image it gives: the yardstick of every row."""
+    key = (scene.name, device, quick)
+    if key not in _LIGHTPASS_TRUTH:
+        r = wv.Renderer(scene, technique="illumination_network", device=device, iterations=2000, tolerance=1e-5,
+                        light_pass=0, light_samples=64 if quick else 256, light_tolerance=0.0)
+        image = r.render().image
+        _LIGHTPASS_TRUTH[key] = (r.technique.direct.numpy().astype(np.float64), image)
+    return _LIGHTPASS_TRUTH[key]
+
+
+def _lightpass_accuracy(params: dict, device: str, quick: bool) -> dict:
+    """What the light pass's representation and resolution buy: the direct light per particle
+    against the exact sphere mean (relative RMSE over particles, lights and channels), the
+    converged image against the image from that exact direct light (how far the image moves)
+    and against the reference; the direct stage's time with both suns moving each frame."""
+    n, w = (128, 24) if quick else (1024, 48)
+    scene = network_scene(quick, n, w)
+    settings = {"light_tolerance": 0.0, **params}  # no fallback: measure the representation itself
+    r = wv.Renderer(scene, technique="illumination_network", device=device, iterations=2000, tolerance=1e-5,
+                    **settings)
+    row = time_frames(r, repeats=2 if quick else 5, invalidate=("lights",))
+    truth, truth_image = _lightpass_truth(scene, device, quick)
+    direct = r.technique.direct.numpy().astype(np.float64)
+    row["direct_rel_rmse"] = float(np.sqrt(np.sum((direct - truth) ** 2) / np.sum(truth**2)))
+    row["direct_ms"] = row["stages"]["direct"]["median_ms"]
+    row["texels"] = r.technique.light_pass.M
+    image = row["frame"].image
+    row["image_move"] = wv.relative_rmse(image, truth_image)
+    ref, floor = reference_image(scene, device, spp=16 if quick else 128, max_bounces=-1, pixel_area=0)
+    row["rel_rmse"] = wv.relative_rmse(image, ref)
+    row["rel_rmse_corrected"] = max(row["rel_rmse"] ** 2 - floor**2, 0.0) ** 0.5
+    row["reference"] = {"spp": 2 * (16 if quick else 128), "max_bounces": -1, "pixel_area": 0,
+                        "rel_rmse_floor": floor}
+    row["scene"] = f"{n} particles {w}x{w}, 2 suns + sky, D = 128"
     return row
 
 
@@ -785,7 +838,7 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
           "per frame, lights and camera moving, 512x512 (direct light, emission, one iteration, splat)",
           "illumination_network", "paper", _network_table_grid, _network_frame, paper=("illumination_network",),
           figure=_row_fps, issue=6),
-    Sweep("illumination-network-sweep", "illumination_network over N (256..8192 particles) and D (32..512 "
+    Sweep("illumination-network-sweep", "illumination_network over N (256..16384 particles) and D (32..512 "
           "directions), window by the paper's rule unless given: frame, one iteration (with its multiply-add rate) "
           "and the visibility-network build",
           "illumination_network", "paper", _network_sweep_grid, _network_frame, issue=6),
@@ -799,6 +852,10 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
     Sweep("illumination-network-animated", "beyond papers/000: a drifting cloud with the visibility network "
           "re-peeled k directions a frame (0: all), error against the full rebuild per frame and frame time",
           "illumination_network", "animated", _animated_grid, _animated, issue=6),
+    Sweep("illumination-network-lightpass", "the shared light pass (media/lightpass.py) in illumination_network: "
+          "exact transmittance (BVH) at 4, 16, 64 points a sphere, depth slices S = 4..64 and Fourier terms "
+          "K = 4..32 at 16 points; the direct light per particle against the exact sphere mean, and the image",
+          "illumination_network", "lightpass", _lightpass_grid, _lightpass_accuracy, issue=20),
     Sweep("illumination-network-albedo", "papers/000's bound: the error of one step eps grows to at most "
           "eps / (1 - a); single- and multiple-scattering RMSE against the reference at albedo 0.5, 0.8, 0.95",
           "illumination_network", "bound", _albedo_grid, _albedo_bound, issue=6),

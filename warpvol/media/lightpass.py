@@ -56,6 +56,7 @@ SLICES = wp.constant(1)
 FOURIER = wp.constant(2)
 REPRESENTATIONS = ("exact", "slices", "fourier")
 MAX_TEXELS = 1024  # texels per face side, at most
+MIN_TEXELS = 64  # and by the rule at least
 
 
 @wp.struct
@@ -452,11 +453,11 @@ class LightPass:
 
     ``representation``: "exact" (no map; BVH ray queries), "slices" (``slices`` = S) or
     "fourier" (``terms`` = K). ``texels``: M per face side, 0 for the rule M = 4 R / r
-    (a texel half a median particle radius across at the cloud, at most ``MAX_TEXELS``).
+    (a texel half a median particle radius across at the cloud), from ``MIN_TEXELS`` to
+    ``MAX_TEXELS``.
     ``tolerance`` > 0: after a build, ``check`` measures the map against the exact answer on
-    up to ``check_particles`` particles (at 4 points of each: the two are compared at the same
-    points, so more would not change the measure much) and, above the tolerance, falls back
-    to exact.
+    up to ``check_particles`` particles (at the same ``samples`` points of each as the render
+    reads) and, above the tolerance, falls back to exact.
     """
 
     def __init__(self, device, representation: str = "slices", slices: int = 16, terms: int = 8, texels: int = 0,
@@ -482,7 +483,8 @@ class LightPass:
         infos = lights.numpy() if lights.shape[0] else []
         radius = cloud.struct.radius.numpy() if n else np.ones(1, np.float32)
         C = self.slices + 1 if kind == SLICES else 2 * self.terms + 1
-        M = self.texels or int(np.clip(np.ceil(4.0 * cloud.R / max(float(np.median(radius)), 1e-9)), 8, MAX_TEXELS))
+        M = self.texels or int(np.clip(np.ceil(4.0 * cloud.R / max(float(np.median(radius)), 1e-9)), MIN_TEXELS,
+                                            MAX_TEXELS))
         faces, first_face, face_count = [], [], []
         centre, R = np.asarray(cloud.centre, np.float64), float(cloud.R)
         for info in infos:
@@ -531,7 +533,7 @@ class LightPass:
         self.M, self.map = (M if kind != EXACT else 0), m
         self.error, self.fell_back = None, False
         if kind != EXACT and self.tolerance > 0.0 and n and len(faces):
-            self.error = self.check(cloud, lights, min(samples, 4))
+            self.error = self.check(cloud, lights, samples)
             if self.error > self.tolerance:
                 self.fell_back = True
                 m.kind = EXACT

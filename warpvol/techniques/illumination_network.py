@@ -23,7 +23,7 @@ directions, between particles that see each other along them. Stages:
   centre. The transmittance comes from the shared light pass (media/lightpass.py): the
   cloud rendered once from each light into depth slices (``light_pass = 1``, as papers/004
   does) or a Fourier opacity map (2), O(N x footprint) per light instead of every sphere
-  against every light ray, and checked against the exact chord sums on 128 particles (the
+  against every light ray, and checked against the exact chord sums on 64 particles (the
   exact answer is used instead when the map is off by more than ``light_tolerance``);
   ``light_pass = 0`` is the exact answer throughout (BVH ray queries). With one sample:
   from the centre through the other spheres, times its own sphere's mean self-shadowing
@@ -115,7 +115,7 @@ SETTINGS = {
     "light_terms": Setting(16, 1, 256, "Fourier terms K of the light pass"),
     "light_texels": Setting(0, 0, 1024, "light-pass texels per face side; 0: 4 R / r (half a median radius)"),
     "light_tolerance": Setting(0.1, 0.0, 10.0, "fall back to exact when the map's relative RMSE against it, "
-                                               "measured on 128 particles, is above this; 0: never check"),
+                                               "measured on 64 particles, is above this; 0: never check"),
     "splat_steps": Setting(0, 0, 4096, "0: splat spheres sorted by depth; S: march S steps through overlapping ones"),
     "refresh": Setting(0, 0, 4096, "when the medium changes, re-peel this many directions (round robin; 0: all)"),
 }
@@ -707,7 +707,7 @@ class IlluminationNetwork(Technique):
         self.travel = wp.zeros(max(n * L, 1), dtype=wp.vec3, device=self.device)
         self.light_pass = LightPass(self.device, REPRESENTATIONS[s["light_pass"]], slices=s["light_slices"],
                                     terms=s["light_terms"], texels=s["light_texels"], tolerance=s["light_tolerance"],
-                                    check_particles=128)
+                                    check_particles=64)
         if n and L:
             self.light_pass.build(self._particles, self.uploads.lights, s["light_samples"])
             self.light_pass.direct(self._particles, self.uploads.lights, s["light_samples"], self.direct, self.travel)
