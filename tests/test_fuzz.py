@@ -46,6 +46,8 @@ TINY = {
     "rbf_propagation": {"grid": 6, "steps": 12},
     "illumination_network": {"directions": 8, "iterations": 3, "light_samples": 1},
 }
+#: And each light-pass representation (media/lightpass.py) at a few points a sphere.
+LIGHT_PASSES = [{"light_pass": k, "light_samples": 3, "light_slices": 3, "light_terms": 2} for k in (0, 1, 2)]
 
 finite = lambda lo, hi: st.floats(lo, hi, allow_nan=False, allow_infinity=False)  # noqa: E731
 log_uniform = lambda lo, hi: st.floats(math.log10(lo), math.log10(hi)).map(lambda e: float(10.0**e))  # noqa: E731
@@ -148,7 +150,8 @@ def test_valid_scenes_render_finite_and_non_negative(scene):
     """Every technique that accepts a random valid scene renders it finite and non-negative;
     the reference and raymarch accept every scene."""
     loaded = wv.load_scene(scene)
-    for technique, tiny in TINY.items():
+    runs = list(TINY.items()) + [("illumination_network", {**TINY["illumination_network"], **lp}) for lp in LIGHT_PASSES]
+    for technique, tiny in runs:
         try:
             image = wv.render(loaded, technique=technique, device="cpu", **tiny).image
         except SettingsError:

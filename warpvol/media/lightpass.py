@@ -57,6 +57,7 @@ FOURIER = wp.constant(2)
 REPRESENTATIONS = ("exact", "slices", "fourier")
 MAX_TEXELS = 1024  # texels per face side, at most
 MIN_TEXELS = 64  # and by the rule at least
+MAX_BYTES = 128 << 20  # one map's texels at most (a CPU build holds one copy per core)
 
 
 @wp.struct
@@ -454,7 +455,7 @@ class LightPass:
     ``representation``: "exact" (no map; BVH ray queries), "slices" (``slices`` = S) or
     "fourier" (``terms`` = K). ``texels``: M per face side, 0 for the rule M = 4 R / r
     (a texel half a median particle radius across at the cloud), from ``MIN_TEXELS`` to
-    ``MAX_TEXELS``.
+    ``MAX_TEXELS``; either way no more than fits ``MAX_BYTES`` (faces x M^2 x C values).
     ``tolerance`` > 0: after a build, ``check`` measures the map against the exact answer on
     up to ``check_particles`` particles (at the same ``samples`` points of each as the render
     reads) and, above the tolerance, falls back to exact.
@@ -508,6 +509,8 @@ class LightPass:
                             right, up = np.eye(3)[(a + 1) % 3], np.eye(3)[(a + 2) % 3]
                             faces.append((pos, fwd, right, up, 1.0, 0.0, d + R, 0))
             face_count.append(len(faces) - first_face[-1])
+        if kind != EXACT and faces:  # the memory bound: F M^2 C vec3 of 12 bytes
+            M = max(1, min(M, int(np.sqrt(MAX_BYTES / (12.0 * C * len(faces))))))
         structs = []
         for k, (o, fwd, right, up, half, near, far, ortho) in enumerate(faces):
             s = LightFace()
