@@ -412,3 +412,124 @@ def split_long_edges(vertices: np.ndarray, faces: np.ndarray, max_edge: float):
         tri = np.concatenate([tri[~long], pieces.reshape(-1, 3, 3)])
         parent = np.concatenate([parent[~long], np.tile(parent[long], 4)])
     return tri.reshape(-1, 3).astype(np.float32), parent.astype(np.int32)
+
+
+# --- spheres binned to screen tiles: splatting particles and impostors front to back ------
+
+SPLAT_DEPTH = wp.constant(wp.int64(1 << 31))  # depth quantisation of a (tile, depth) sort key
+
+
+@wp.struct
+class TileLists:
+    """Spheres sorted by screen tile, then depth: tile k's are values[first[k]:last[k]]."""
+    values: wp.array(dtype=int)
+    first: wp.array(dtype=int)
+    last: wp.array(dtype=int)
+    tiles_x: int
+
+
+@wp.func
+def sphere_extent(xc: float, z: float, r: float):
+    """Tangent slopes (x / z) bounding a circle of radius r at (xc, z), z > r."""
+    root = wp.sqrt(wp.max(xc * xc + z * z - r * r, 0.0))
+    den = z * z - r * r
+    return (xc * z - r * root) / den, (xc * z + r * root) / den
+
+
+@wp.kernel
+def sphere_tile_rect(offset: int, cam: RasterView, centres: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float),
+                     tiles_x: int, tiles_y: int, rect: wp.array(dtype=wp.vec4i), count: wp.array(dtype=int)):
+    """Tiles [x0, x1) x [y0, y1) sphere p's projection may touch (a perspective camera view)."""
+    p = wp.tid() + offset
+    kx = wp.length(cam.right)
+    ky = wp.length(cam.up)
+    rel = centres[p] - cam.origin
+    z = wp.dot(rel, cam.fwd)
+    r = radius[p]
+    x0 = int(0)
+    x1 = tiles_x
+    y0 = int(0)
+    y1 = tiles_y
+    if z <= r:
+        if z < -r:  # wholly behind the eye
+            x1 = 0
+    else:
+        ax, bx = sphere_extent(wp.dot(rel, cam.right) / kx, z, r)
+        ay, by = sphere_extent(wp.dot(rel, cam.up) / ky, z, r)
+        # slopes to pixels: px = (s / k + 1) W / 2, py = (1 - s / k) H / 2
+        w = float(cam.width)
+        h = float(cam.height)
+        x0 = wp.clamp(int(wp.floor((ax / kx + 1.0) * 0.5 * w / float(TILE))), 0, tiles_x)
+        x1 = wp.clamp(int(wp.floor((bx / kx + 1.0) * 0.5 * w / float(TILE))) + 1, 0, tiles_x)
+        y0 = wp.clamp(int(wp.floor((1.0 - by / ky) * 0.5 * h / float(TILE))), 0, tiles_y)
+        y1 = wp.clamp(int(wp.floor((1.0 - ay / ky) * 0.5 * h / float(TILE))) + 1, 0, tiles_y)
+    rect[p] = wp.vec4i(x0, x1, y0, y1)
+    count[p] = wp.max(x1 - x0, 0) * wp.max(y1 - y0, 0)
+
+
+@wp.kernel
+def sphere_tile_pairs(offset: int, cam: RasterView, centres: wp.array(dtype=wp.vec3), rect: wp.array(dtype=wp.vec4i),
+                      start: wp.array(dtype=int), tiles_x: int, z_far: float, keys: wp.array(dtype=wp.int64),
+                      values: wp.array(dtype=int)):
+    """Key tile << 32 | depth for every (tile, sphere) pair of sphere p."""
+    p = wp.tid() + offset
+    b = rect[p]
+    depth = wp.clamp(wp.dot(centres[p] - cam.origin, cam.fwd) / z_far, 0.0, 1.0)
+    q = wp.int64(depth * float(SPLAT_DEPTH - wp.int64(1)))
+    k = start[p]
+    for ty in range(b[2], b[3]):
+        for tx in range(b[0], b[1]):
+            keys[k] = wp.int64(ty * tiles_x + tx) * SPLAT_DEPTH * wp.int64(2) + q
+            values[k] = p
+            k += 1
+
+
+@wp.kernel
+def tile_ranges(offset: int, keys: wp.array(dtype=wp.int64), total: int, first: wp.array(dtype=int),
+                last: wp.array(dtype=int)):
+    k = wp.tid() + offset
+    tile = int(keys[k] / (SPLAT_DEPTH * wp.int64(2)))
+    if k == 0:
+        first[tile] = 0
+    elif int(keys[k - 1] / (SPLAT_DEPTH * wp.int64(2))) != tile:
+        first[tile] = k
+    if k == total - 1:
+        last[tile] = total
+    elif int(keys[k + 1] / (SPLAT_DEPTH * wp.int64(2))) != tile:
+        last[tile] = k + 1
+
+
+@wp.func
+def pixel_tile(cam: RasterView, tid: int, tiles_x: int) -> int:
+    """The index of pixel ``tid``'s tile."""
+    return ((tid / cam.width) / TILE) * tiles_x + (tid % cam.width) / TILE
+
+
+def bin_spheres(cam: RasterView, centres: wp.array, radius: wp.array, z_far: float, device) -> TileLists:
+    """Every sphere (centre, radius) listed in the TILE x TILE pixel tiles its projection may
+    touch, each tile's list sorted near to far by centre depth (one radix sort of (tile,
+    depth) keys): a pixel composites its tile's list front to back. ``z_far`` bounds the
+    depths (the quantisation's range)."""
+    W, H = cam.width, cam.height
+    tx, ty = -(-W // TILE), -(-H // TILE)
+    tl = TileLists()
+    tl.first = wp.zeros(tx * ty, dtype=int, device=device)
+    tl.last = wp.zeros(tx * ty, dtype=int, device=device)
+    tl.values = wp.zeros(1, dtype=int, device=device)
+    tl.tiles_x = tx
+    n = centres.shape[0]
+    if not n:
+        return tl
+    rect = wp.empty(n, dtype=wp.vec4i, device=device)
+    count = wp.empty(n, dtype=int, device=device)
+    dev.launch(sphere_tile_rect, n, [cam, centres, radius, tx, ty, rect, count], device)
+    start = wp.empty(n, dtype=int, device=device)
+    wp.utils.array_scan(count, start, inclusive=False)
+    total = int(start.numpy()[-1] + count.numpy()[-1])
+    if total:
+        keys = wp.empty(2 * total, dtype=wp.int64, device=device)
+        tl.values = wp.empty(2 * total, dtype=int, device=device)
+        dev.launch(sphere_tile_pairs, n, [cam, centres, rect, start, tx, z_far, keys, tl.values], device)
+        wp.utils.radix_sort_pairs(keys, tl.values, total)
+        dev.launch(tile_ranges, total, [keys, total, tl.first, tl.last], device)
+    return tl

@@ -287,22 +287,31 @@ def _medium(data, where, source, base_dir) -> Medium:
                       peak=t.vec3("peak", lo=0.0, scalar_ok=True))
     else:
         radius = t.number("radius", lo=0.0, lo_open=True)
+        block_size = 0
         if "generator" in t.data:
             g = _Table(t.raw("generator"), t.key("generator"), source)
-            g.string("kind", choices=["cloud"])
-            from .procedural import cloud_particles
+            gen = g.string("kind", choices=["cloud", "blocks"])
+            from .procedural import block_particles, cloud_particles
 
-            positions = cloud_particles(
-                count=g.number("count", 1024, 1, 10_000_000, integer=True),
-                seed=g.number("seed", 1, 0, 2**31 - 1, integer=True),
-                center=g.vec3("center", (0.0, 0.0, 0.0)),
-                extent=g.number("extent", 1.0, 0.0, lo_open=True),
-            )
+            seed = g.number("seed", 1, 0, 2**31 - 1, integer=True)
+            center = g.vec3("center", (0.0, 0.0, 0.0))
+            extent = g.number("extent", 1.0, 0.0, lo_open=True)
+            if gen == "cloud":
+                positions = cloud_particles(count=g.number("count", 1024, 1, 10_000_000, integer=True), seed=seed,
+                                            center=center, extent=extent)
+            else:  # papers/004: blocks copies of one block of per_block particles
+                blocks = g.number("blocks", 40, 1, 10_000_000, integer=True)
+                block_size = g.number("per_block", 200, 1, 10_000_000, integer=True)
+                if blocks * block_size > 10_000_000:
+                    g.fail(g.key("per_block"), f"blocks x per_block = {blocks * block_size} particles",
+                           "at most 10000000 particles")
+                positions = block_particles(blocks, block_size, seed=seed, center=center, extent=extent,
+                                            block_extent=g.number("block_extent", 0.25, 0.0, lo_open=True))
             g.finish()
         else:
             positions = _points(t, "positions", base_dir, "particle", "a file or a generator")
         m = ParticleMedium(**common, positions=_array(t, "positions", positions, (3,), "[[x, y, z], ...]"),
-                           radius=radius, sigma_t=t.vec3("sigma_t", lo=0.0, scalar_ok=True))
+                           radius=radius, sigma_t=t.vec3("sigma_t", lo=0.0, scalar_ok=True), block_size=block_size)
     t.finish()
     return m
 

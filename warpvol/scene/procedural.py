@@ -21,6 +21,18 @@ def cloud_particles(count: int, seed: int = 1, center=(0.0, 0.0, 0.0), extent: f
     return (np.asarray(center) + extent * out[:count]).astype(np.float32)
 
 
+def block_particles(blocks: int, per_block: int, seed: int = 1, center=(0.0, 0.0, 0.0), extent: float = 1.0,
+                    block_extent: float = 0.25) -> np.ndarray:
+    """A cloud built of ``blocks`` copies of one block of ``per_block`` particles (papers/004's
+    hierarchy): block centres by ``cloud_particles`` in a ball of radius ``extent``, the block
+    a ``cloud_particles`` cluster of radius ``block_extent`` about its own centroid.
+    Positions are block-major, (blocks * per_block, 3)."""
+    centres = cloud_particles(blocks, seed, center, extent).astype(np.float64)
+    template = cloud_particles(per_block, seed + 7919, (0.0, 0.0, 0.0), block_extent).astype(np.float64)
+    template -= template.mean(axis=0)
+    return (centres[:, None, :] + template[None]).reshape(-1, 3).astype(np.float32)
+
+
 def smoke_density(n: int = 32, seed: int = 3) -> np.ndarray:
     """A (n, n, n) plume: sum of seeded Gaussian puffs rising along y, in [0, 1]."""
     rng = np.random.default_rng(seed)

@@ -85,7 +85,7 @@ import warp as wp
 from .. import device as dev
 from ..geometry.camera import camera_view
 from ..geometry.intersect import ray_sphere, sphere_chord
-from ..geometry.raster import RasterView, pixel_ray
+from ..geometry.raster import RasterView, TileLists, bin_spheres, pixel_ray, pixel_tile
 from ..media.lightpass import REPRESENTATIONS, LightPass
 from ..media.particles import ParticleBuffers, Particles, particle_sigma_t
 from ..physics.constants import INV_4PI, PI
@@ -120,7 +120,6 @@ SETTINGS = {
     "refresh": Setting(0, 0, 4096, "when the medium changes, re-peel this many directions (round robin; 0: all)"),
 }
 
-TILE = wp.constant(16)  # pixels per side of a splatting tile
 ROWS = 4  # rows of I per thread of the matrix product
 vec16 = wp.types.vector(length=16, dtype=float)
 DEPTH_BITS = wp.constant(wp.int64(1 << 31))
@@ -134,15 +133,6 @@ class DirectLight:
     travel: wp.array(dtype=wp.vec3)
     weight: wp.array(dtype=float)
     count: int  # lights L
-
-
-@wp.struct
-class TileLists:
-    """The splat's particles sorted by tile, then depth: tile k's are values[first[k]:last[k]]."""
-    values: wp.array(dtype=int)
-    first: wp.array(dtype=int)
-    last: wp.array(dtype=int)
-    tiles_x: int
 
 
 @wp.kernel
@@ -375,83 +365,6 @@ def outgoing_radiance(offset: int, P: Particles, eye: wp.vec3, dirs: wp.array(dt
     for l in range(dl.count):
         s += phase_toward(ph, table, dl.travel[p * dl.count + l], w) * dl.direct[p * dl.count + l]
     out[p] = wp.cw_mul(P.albedo[p], s)
-
-
-@wp.func
-def sphere_extent(xc: float, z: float, r: float):
-    """Tangent slopes (x / z) bounding a circle of radius r at (xc, z), z > r."""
-    root = wp.sqrt(wp.max(xc * xc + z * z - r * r, 0.0))
-    den = z * z - r * r
-    return (xc * z - r * root) / den, (xc * z + r * root) / den
-
-
-@wp.kernel
-def splat_bounds(offset: int, cam: RasterView, P: Particles, tiles_x: int, tiles_y: int, rect: wp.array(dtype=wp.vec4i),
-                 count: wp.array(dtype=int)):
-    """Tiles [x0, x1) x [y0, y1) a particle's projected sphere may touch."""
-    p = wp.tid() + offset
-    kx = wp.length(cam.right)
-    ky = wp.length(cam.up)
-    rel = P.centres[p] - cam.origin
-    z = wp.dot(rel, cam.fwd)
-    r = P.radius[p]
-    x0 = int(0)
-    x1 = tiles_x
-    y0 = int(0)
-    y1 = tiles_y
-    if z <= r:
-        if z < -r:  # wholly behind the eye
-            x1 = 0
-    else:
-        ax, bx = sphere_extent(wp.dot(rel, cam.right) / kx, z, r)
-        ay, by = sphere_extent(wp.dot(rel, cam.up) / ky, z, r)
-        # slopes to pixels: px = (s / k + 1) W / 2, py = (1 - s / k) H / 2
-        w = float(cam.width)
-        h = float(cam.height)
-        x0 = wp.clamp(int(wp.floor((ax / kx + 1.0) * 0.5 * w / float(TILE))), 0, tiles_x)
-        x1 = wp.clamp(int(wp.floor((bx / kx + 1.0) * 0.5 * w / float(TILE))) + 1, 0, tiles_x)
-        y0 = wp.clamp(int(wp.floor((1.0 - by / ky) * 0.5 * h / float(TILE))), 0, tiles_y)
-        y1 = wp.clamp(int(wp.floor((1.0 - ay / ky) * 0.5 * h / float(TILE))) + 1, 0, tiles_y)
-    rect[p] = wp.vec4i(x0, x1, y0, y1)
-    count[p] = wp.max(x1 - x0, 0) * wp.max(y1 - y0, 0)
-
-
-@wp.kernel
-def splat_pairs(offset: int, cam: RasterView, pos: wp.array(dtype=wp.vec3), rect: wp.array(dtype=wp.vec4i),
-                start: wp.array(dtype=int), tiles_x: int, z_far: float, keys: wp.array(dtype=wp.int64),
-                values: wp.array(dtype=int)):
-    """Key tile << 32 | depth for every (tile, particle) pair of particle p."""
-    p = wp.tid() + offset
-    b = rect[p]
-    depth = wp.clamp(wp.dot(pos[p] - cam.origin, cam.fwd) / z_far, 0.0, 1.0)
-    q = wp.int64(depth * float(DEPTH_BITS - wp.int64(1)))
-    k = start[p]
-    for ty in range(b[2], b[3]):
-        for tx in range(b[0], b[1]):
-            keys[k] = wp.int64(ty * tiles_x + tx) * DEPTH_BITS * wp.int64(2) + q
-            values[k] = p
-            k += 1
-
-
-@wp.kernel
-def tile_ranges(offset: int, keys: wp.array(dtype=wp.int64), total: int, first: wp.array(dtype=int),
-                last: wp.array(dtype=int)):
-    k = wp.tid() + offset
-    tile = int(keys[k] / (DEPTH_BITS * wp.int64(2)))
-    if k == 0:
-        first[tile] = 0
-    elif int(keys[k - 1] / (DEPTH_BITS * wp.int64(2))) != tile:
-        first[tile] = k
-    if k == total - 1:
-        last[tile] = total
-    elif int(keys[k + 1] / (DEPTH_BITS * wp.int64(2))) != tile:
-        last[tile] = k + 1
-
-
-@wp.func
-def pixel_tile(cam: RasterView, tid: int, tiles_x: int) -> int:
-    """The index of pixel ``tid``'s splatting tile."""
-    return ((tid / cam.width) / TILE) * tiles_x + (tid % cam.width) / TILE
 
 
 @wp.kernel
@@ -790,31 +703,17 @@ class IlluminationNetwork(Technique):
         self.image = wp.empty(W * H, dtype=wp.vec3, device=device)
         pc = camera_view(pinhole(cam))
         P = self.particles
-        tx, ty = -(-W // TILE), -(-H // TILE)
-        first = wp.zeros(tx * ty, dtype=int, device=device)
-        last = wp.zeros(tx * ty, dtype=int, device=device)
         self.radiance = wp.zeros(max(n, 1), dtype=wp.vec3, device=device)
-        values = wp.zeros(1, dtype=int, device=device)
         if n:
             dev.launch(outgoing_radiance, n, [P, pc.origin, self.dirs, self.I, self._direct_light(), self.phase,
                                               self.table, self.settings["phase_norm"], self.scale, self.radiance],
                        device, min_split=512)
-            rect = wp.empty(n, dtype=wp.vec4i, device=device)
-            count = wp.empty(n, dtype=int, device=device)
-            dev.launch(splat_bounds, n, [pc, P, tx, ty, rect, count], device)
-            start = wp.empty(n, dtype=int, device=device)
-            wp.utils.array_scan(count, start, inclusive=False)
-            total = int(start.numpy()[-1] + count.numpy()[-1])
-            if total:
-                keys = wp.empty(2 * total, dtype=wp.int64, device=device)
-                values = wp.empty(2 * total, dtype=int, device=device)
-                z_far = float(np.linalg.norm(self.centre - np.asarray(cam.origin)) + self.R)
-                dev.launch(splat_pairs, n, [pc, P.centres, rect, start, tx, z_far, keys, values], device)
-                wp.utils.radix_sort_pairs(keys, values, total)
-                dev.launch(tile_ranges, total, [keys, total, first, last], device)
+            z_far = float(np.linalg.norm(self.centre - np.asarray(cam.origin)) + self.R)
+            tl = bin_spheres(pc, P.centres, P.radius, z_far, device)
+        else:
+            tl = bin_spheres(pc, wp.empty(0, dtype=wp.vec3, device=device), wp.empty(0, dtype=float, device=device),
+                             1.0, device)
         bg = wp.vec3(*self.scene.background)
-        tl = TileLists()
-        tl.values, tl.first, tl.last, tl.tiles_x = values, first, last, tx
         if self.settings["splat_steps"]:
             dev.launch(composite_march, W * H, [pc, P, self.radiance, tl, self.settings["splat_steps"], bg, self.image],
                        device)
