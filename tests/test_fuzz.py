@@ -45,6 +45,7 @@ TINY = {
     "light_shafts": {"steps": 8, "block": 2, "shadow_map_res": 16, "shadow_steps": 6},
     "rbf_propagation": {"grid": 6, "steps": 12},
     "illumination_network": {"directions": 8, "iterations": 3, "light_samples": 1},
+    "depth_impostors": {"impostor_res": 4, "slices": 2, "light_samples": 2},
 }
 #: And each light-pass representation (media/lightpass.py) at a few points a sphere.
 LIGHT_PASSES = [{"light_pass": k, "light_samples": 3, "light_slices": 3, "light_terms": 2} for k in (0, 1, 2)]

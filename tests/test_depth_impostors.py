@@ -1,0 +1,139 @@
+"""Depth impostors (papers/004): the impostor of a block against ray-sphere chords, blocks
+found in a block-built cloud, objects in clouds (depth impostors against billboards), the
+pipeline's caching, and the hard cases (one particle, all particles at one point, alpha -> 1,
+a light inside the cloud and at a particle's centre, a surface through block centres,
+S = 1, a camera inside the cloud)."""
+
+import numpy as np
+import pytest
+
+import warpvol as wv
+from warpvol.techniques.depth_impostors import split_blocks
+
+SUN = {"type": "directional", "direction": [0.5, -0.8, -0.3], "irradiance": 2.0}
+
+
+def block_scene(blocks=6, per_block=12, width=32, lights=(SUN,), surfaces=(), sigma_t=8.0, radius=0.08,
+                origin=(0.0, 0.0, 4.0), positions=None, background=0.1):
+    medium = {"type": "particles", "radius": radius, "sigma_t": sigma_t, "albedo": 0.9, "phase": {"type": "hg", "g": 0.3}}
+    if positions is None:
+        medium["generator"] = {"kind": "blocks", "blocks": blocks, "per_block": per_block, "seed": 3, "extent": 1.0,
+                               "block_extent": 0.3}
+    else:
+        medium["positions"] = np.asarray(positions, float).tolist()
+    return {"name": "di-test", "background": [background] * 3,
+            "camera": {"origin": list(origin), "target": [0, 0, 0], "up": [0, 1, 0], "fov_y": 40.0, "width": width,
+                       "height": width},
+            "lights": list(lights), "media": [medium], "surfaces": list(surfaces)}
+
+
+def test_a_block_built_cloud_splits_into_its_template_and_instances():
+    scene = wv.load_scene(block_scene(blocks=5, per_block=7))
+    m = scene.media[0]
+    assert m.block_size == 7 and len(m.positions) == 35
+    template, centres = split_blocks(np.asarray(m.positions), 7)
+    assert template.shape == (7, 3) and centres.shape == (5, 3)
+    np.testing.assert_allclose(template.mean(0), 0.0, atol=1e-6)
+    moved = np.asarray(m.positions).copy()
+    moved[3] += 0.01  # one particle off its template: not a block-built cloud any more
+    assert split_blocks(moved, 7) is None
+
+
+def test_impostor_is_the_chord_sum_of_its_block(device):
+    """Per texel: opacity 1 - exp(-sigma sum of chords), front = min entry, back = max exit
+    (depths from the block's centre along the view), against numpy ray-sphere chords."""
+    r = wv.Renderer(block_scene(blocks=1, per_block=9), "depth_impostors", device=device, impostor_res=12)
+    r.render()
+    a = r.arrays()
+    t = r.technique
+    pos = np.asarray(t.scene.media[0].positions, np.float64)
+    offsets = pos - pos.mean(0)
+    radius, sigma, T = 0.08, 8.0, 12
+    R = np.sqrt((offsets**2).sum(1)).max() + radius
+    cam = t.scene.camera
+    fwd = np.asarray(cam.target, float) - cam.origin
+    fwd /= np.linalg.norm(fwd)
+    right = np.cross(fwd, cam.up)
+    right /= np.linalg.norm(right)
+    up = np.cross(right, fwd)
+    for j in range(T):
+        for i in range(T):
+            u, v = ((i + 0.5) / T * 2 - 1) * R, ((j + 0.5) / T * 2 - 1) * R
+            o = u * right + v * up - R * fwd
+            oc = offsets - o
+            b = oc @ fwd
+            h2 = radius**2 - ((oc * oc).sum(1) - b * b)
+            hit = h2 > 0
+            h = np.sqrt(np.where(hit, h2, 0))
+            chords = np.where(hit, 2 * h, 0).sum()
+            assert a["impostor_alpha"][j, i, 0] == pytest.approx(1 - np.exp(-sigma * chords), abs=2e-5)
+            if hit.any():
+                assert a["impostor_front"][j, i] == pytest.approx((b - h)[hit].min() - R, abs=1e-4)
+                assert a["impostor_back"][j, i] == pytest.approx((b + h)[hit].max() - R, abs=1e-4)
+
+
+def test_a_surface_inside_a_block_cuts_its_opacity(device):
+    """A black plane just in front of the blocks' centres, facing the camera: what the cloud
+    scatters toward the camera in front of it. Depth impostors keep the part of each block
+    in front of the plane (between none and all of it); billboards (object_depth = 0) put
+    each block wholly behind the plane, so nothing of the cloud shows."""
+    def image(z, **settings):
+        plane = {"type": "plane", "center": [0.0, 0.0, z], "normal": [0.0, 0.0, 1.0], "size": [20.0, 20.0], "diffuse": 0.0}
+        scene = block_scene(blocks=1, per_block=20, background=0.0, surfaces=[plane])
+        return wv.render(scene, "depth_impostors", device=device, light_pass=0, **settings).image.mean()
+
+    full, none = image(-5.0), image(2.0)  # behind the cloud; between it and the camera (z = 4)
+    z_cut = 0.0 + 0.01  # the single block's centre is at the origin (one instance)
+    cut, billboard = image(z_cut), image(z_cut, object_depth=0)
+    assert none == 0.0 and full > 0.0
+    assert 0.1 * full < cut < 0.9 * full, (cut, full)
+    assert billboard == 0.0
+
+
+def test_pipeline_caches_what_does_not_change(device):
+    """A moved camera re-makes impostors, shading and the gather, not the light pass; a moved
+    light re-runs the light pass and shading, not the impostors; nothing moved: all cached."""
+    r = wv.Renderer(block_scene(), "depth_impostors", device=device)
+    r.render()
+    status = lambda f: {k: v.status for k, v in f.stages.items()}  # noqa: E731
+    s = status(r.render())
+    assert all(s[k] == "cached" for k in ("blocks", "light", "impostors", "shade", "gather"))
+    r.update(camera={"origin": [0.5, 0.2, 4.0], "target": [0, 0, 0], "up": [0, 1, 0], "fov_y": 40.0, "width": 32,
+                     "height": 32})
+    s = status(r.render())
+    assert s["light"] == "cached" and s["blocks"] == "cached"
+    assert s["impostors"] == s["shade"] == s["gather"] == "ran"
+    r.update(lights=[{"type": "directional", "direction": [-0.3, -1.0, 0.2], "irradiance": 2.0}])
+    s = status(r.render())
+    assert s["impostors"] == "cached" and s["light"] == s["shade"] == s["gather"] == "ran"
+
+
+HARD = {
+    "one particle": dict(positions=[[0.0, 0.0, 0.0]]),
+    "all particles at one point": dict(positions=[[0.1, 0.2, 0.0]] * 50),
+    "alpha -> 1 (sigma_t r = 1e4)": dict(sigma_t=1.25e5),
+    "a light inside the cloud": dict(lights=[{"type": "point", "position": [0.05, 0.0, 0.0], "intensity": 3.0}]),
+    "a light at a particle's centre": dict(positions=[[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.15, 0.05]],
+                                          lights=[{"type": "point", "position": [0.0, 0.0, 0.0], "intensity": 3.0}]),
+    "a surface through the block centres": dict(blocks=3, surfaces=[{"type": "plane", "center": [0, 0, 0],
+                                                                      "normal": [0, 0, 1], "size": [4.0, 4.0]}]),
+    "a camera inside the cloud": dict(origin=(0.0, 0.0, 0.05)),
+}
+
+
+@pytest.mark.parametrize("case", list(HARD))
+@pytest.mark.parametrize("slices", [1, 4])
+def test_hard_cases_stay_finite(case, slices, device):
+    image = wv.render(block_scene(**HARD[case]), "depth_impostors", device=device, slices=slices).image
+    assert np.all(np.isfinite(image)) and np.all(image >= 0)
+    assert image.max() > 0.0
+
+
+def test_blocks_of_one_particle_render_as_particles(device):
+    """per_block = 1 is the paper's "no blocks" row: the same image as the positions given
+    as a plain cloud (each particle its own instance, its opacity the sphere's chord)."""
+    scene = block_scene(blocks=40, per_block=1)
+    plain = block_scene(positions=wv.load_scene(scene).media[0].positions)
+    a = wv.render(scene, "depth_impostors", device=device).image
+    b = wv.render(plain, "depth_impostors", device=device).image
+    np.testing.assert_array_equal(a, b)

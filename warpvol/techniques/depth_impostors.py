@@ -1,0 +1,542 @@
+"""Depth impostors: particle clouds built of blocks, light slices, objects inside clouds.
+
+papers/004 (8000 particles, one directional light, 8 FPS without blocks and 200 FPS with 40
+blocks on a GeForce 6800 GT). A cloud of N particles is built of N / b copies (instances) of
+one block of b particles, so a frame renders the block once (b) and then its instances
+(N / b) instead of N particles. Single scattering of the scene's lights. Stages:
+
+* ``blocks`` (reads the medium): the particles to the device, and the blocks. A medium made
+  by ``generator = {kind = "blocks", ...}`` (``block_size`` b > 1) is K instances of one
+  template block: the block's particles about its centroid, and the K centroids. Any other
+  particle medium is N instances of a one-particle template (the paper's "no blocks" row).
+* ``light`` (reads the lights): the shared light pass (media/lightpass.py) over the cloud:
+  per light, the opacity accumulated up to S depths (the paper's light slices, S = 4 in one
+  RGBA texture; here ``slices``), read at any point by interpolating between the two
+  slices that enclose it. Directional lights get an orthographic pass, point and spot
+  lights a perspective one (a cube inside the cloud). ``light_pass = 2``: a Fourier
+  opacity map of ``light_terms`` terms instead (Jansen and Bavoil 2010); 0: exact.
+* ``impostors`` (reads the camera): each template block's depth impostor for the camera
+  direction: T x T texels (``impostor_res``) over the block's bounding disc, per texel the
+  total opacity 1 - prod(1 - alpha_j) = 1 - exp(-sum sigma_t chord_j) (RGB; each sphere's
+  chord analytic), the front and back depths (min entry, max exit, from the block's
+  centre), and the depth it is shaded at (the chords' centres weighted by what each sends
+  toward the viewer: a thick texel is seen at its front). b x T^2 work, once per template, not per instance. A one-particle template needs
+  no texture: its opacity along a pixel ray is the sphere's own chord.
+* ``shade`` (reads the camera): what each instance's texel scatters toward the camera:
+  albedo x sum over lights of p(theta) E T_light, T_light read from the light pass at the
+  texel's shading depth (the block's own particles toward the light included: its
+  self-shadowing). A one-particle instance: its irradiance averaged over the sphere at
+  ``light_samples`` points (``LightPass.direct``).
+* ``surfaces`` (reads the surfaces, camera): per pixel the nearest surface (its depth: the
+  paper's depth buffer) and its colour lit through the light pass (the cloud's shadow) and
+  past the other surfaces.
+* ``gather`` (reads the camera, background): instances listed per 16 x 16 pixel tile near
+  to far (``bin_spheres``) and composited front to back: an instance adds T alpha L and
+  scales T by 1 - alpha. Objects in clouds (section 2.4): where the surface depth falls in
+  a block's [front, back] interval along the pixel ray, its optical depth is scaled by the
+  fraction of the interval in front of the surface (uniform density in the block; for a
+  one-particle instance the chord is cut exactly). ``object_depth = 0`` is the billboard
+  the paper fixes: a block stands at its centre plane, wholly in front of or behind the
+  surface. The background (or the surface) shows through.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from .. import device as dev
+from ..geometry.camera import camera_view
+from ..geometry.intersect import ray_sphere
+from ..geometry.mesh import Surfaces, occluded, surface_hit
+from ..geometry.raster import RasterView, TileLists, bin_spheres, pixel_ray, pixel_tile
+from ..media.lightpass import REPRESENTATIONS, LightMap, LightPass, optical_depth_to_light
+from ..media.particles import ParticleBuffers, Particles
+from ..physics.brdf import brdf_eval
+from ..physics.constants import INF, INV_4PI, RAY_EPS
+from ..physics.lights import Light, light_incident
+from ..physics.phase import Phase, phase_eval, phase_struct
+from ..physics.transmittance import transmittance_rgb
+from ..pipeline import Setting, SettingsError, Stage, Technique
+from ..upload import SceneUploads, pinhole
+
+NAME = "depth_impostors"
+SETTINGS = {
+    "impostor_res": Setting(16, 1, 512, "texels across a block's depth impostor (T x T)"),
+    "slices": Setting(4, 1, 1024, "light-pass depth slices S (the paper: 4, in one RGBA texture)"),
+    "light_pass": Setting(1, 0, 2, "0 exact transmittance (BVH ray queries), 1 depth slices, 2 Fourier opacity map"),
+    "light_terms": Setting(8, 1, 256, "Fourier terms K (light_pass = 2)"),
+    "light_texels": Setting(0, 0, 1024, "light-pass texels per face side; 0: 4 R / r (half a median radius)"),
+    "light_samples": Setting(4, 1, 1024, "points of a one-particle instance whose light is averaged"),
+    "object_depth": Setting(1, 0, 1, "1: depth impostors (a block's opacity cut where a surface lies inside its "
+                                     "depth interval); 0: billboards (a block at its centre plane, as the paper fixes)"),
+}
+
+
+@wp.struct
+class Blocks:
+    """K instances of templates; a template's particles are offsets from its centre."""
+    centre: wp.array(dtype=wp.vec3)  # per instance
+    tpl: wp.array(dtype=int)  # per instance: its template
+    reach: wp.array(dtype=float)  # per instance: the template's bounding radius
+    first: wp.array(dtype=int)  # per template: its first particle offset
+    count: wp.array(dtype=int)  # per template: b
+    offsets: wp.array(dtype=wp.vec3)
+    radius: wp.array(dtype=float)  # per template (one medium each)
+    sigma_t: wp.array(dtype=wp.vec3)
+    albedo: wp.array(dtype=wp.vec3)
+    texel0: wp.array(dtype=int)  # per template: its first impostor texel (-1: one particle, no texture)
+    res: int  # T
+
+
+@wp.struct
+class Impostors:
+    """Per texel of every template's impostor: opacity, front and back depth from the centre."""
+    alpha: wp.array(dtype=wp.vec3)
+    front: wp.array(dtype=float)
+    back: wp.array(dtype=float)
+    mid: wp.array(dtype=float)  # the depth a texel is shaded at
+    fwd: wp.vec3  # the direction they were made for, and its frame
+    right: wp.vec3
+    up: wp.vec3
+
+
+@wp.kernel
+def make_impostors(offset: int, B: Blocks, reach: wp.array(dtype=float), imp: Impostors,
+                   alpha: wp.array(dtype=wp.vec3), front: wp.array(dtype=float), back: wp.array(dtype=float),
+                   mid: wp.array(dtype=float), owner: wp.array(dtype=int)):
+    """Thread per texel of a template's impostor: the total opacity of the block's spheres
+    along the texel's ray (direction imp.fwd), the nearest entry and farthest exit, and the
+    depth the texel is shaded at: the chords' own emission-weighted depths (the mean depth
+    of a first collision inside each), averaged with weights what each chord sends toward
+    the viewer, e^(-tau in front of it) (1 - e^(-its own tau)): the visible part of a thick
+    texel lies at its front, not at its middle."""
+    tid = wp.tid() + offset
+    t = owner[tid]
+    k = tid - B.texel0[t]
+    T = B.res
+    R = reach[t]
+    u = ((float(k % T) + 0.5) / float(T) * 2.0 - 1.0) * R
+    v = ((float(k / T) + 0.5) / float(T) * 2.0 - 1.0) * R
+    o = u * imp.right + v * imp.up - R * imp.fwd
+    r = B.radius[t]
+    sig = (B.sigma_t[t][0] + B.sigma_t[t][1] + B.sigma_t[t][2]) / 3.0
+    tau = float(0.0)
+    lo = float(INF)
+    hi = float(-INF)
+    wsum = float(0.0)
+    dsum = float(0.0)
+    j0 = B.first[t]
+    j1 = j0 + B.count[t]
+    for j in range(j0, j1):
+        a, b = ray_sphere(o, imp.fwd, B.offsets[j], r)
+        if b > a:
+            tau += b - a
+            lo = wp.min(lo, a - R)
+            hi = wp.max(hi, b - R)
+            before = float(0.0)  # chord length of the other spheres in front of this one's entry
+            for q in range(j0, j1):
+                if q != j:
+                    a2, b2 = ray_sphere(o, imp.fwd, B.offsets[q], r)
+                    before += wp.max(wp.min(b2, a) - a2, 0.0)
+            tj = sig * (b - a)
+            w = wp.exp(-sig * before) * (1.0 - wp.exp(-tj))
+            # the chord's own emission-weighted depth: a + (b - a) (1 / tau - e^-tau / (1 - e^-tau))
+            g = float(0.5)
+            if tj > 1.0e-3:
+                g = 1.0 / tj - wp.exp(-tj) / (1.0 - wp.exp(-tj))
+            wsum += w
+            dsum += w * (a + (b - a) * g - R)
+    alpha[tid] = wp.vec3(1.0) - transmittance_rgb(B.sigma_t[t] * tau)
+    front[tid] = lo
+    back[tid] = hi
+    mid[tid] = wp.where(wsum > 0.0, dsum / wp.max(wsum, 1.0e-30), 0.5 * (lo + hi))
+
+
+@wp.func
+def in_scatter(m: LightMap, P: Particles, lights: wp.array(dtype=Light), ph: Phase, table: wp.array(dtype=float),
+               x: wp.vec3, w_out: wp.vec3) -> wp.vec3:
+    """Light scattered at x toward w_out per unit albedo: sum_l p E_l T_l(x)."""
+    L = wp.vec3(0.0)
+    for l in range(lights.shape[0]):
+        wi, dist, e = light_incident(lights[l], x)
+        if e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0:
+            tr = transmittance_rgb(optical_depth_to_light(m, P, -1, l, lights[l], x))
+            L += phase_eval(ph, table, wp.dot(-wi, w_out)) * wp.cw_mul(e, tr)
+    return L
+
+
+@wp.kernel
+def shade_texels(offset: int, B: Blocks, imp: Impostors, m: LightMap, P: Particles, lights: wp.array(dtype=Light),
+                 ph: Phase, table: wp.array(dtype=float), eye: wp.vec3, inst: wp.array(dtype=int),
+                 first: wp.array(dtype=int), radiance: wp.array(dtype=wp.vec3)):
+    """Thread (textured instance j, texel k): what the texel's segment scatters toward the
+    eye, per unit opacity: albedo sum_l p E_l T_l at its mid-depth point."""
+    tid = wp.tid() + offset
+    T2 = B.res * B.res
+    j = tid / T2
+    k = tid % T2
+    i = inst[j]
+    t = B.tpl[i]
+    texel = B.texel0[t] + k
+    L = wp.vec3(0.0)
+    if imp.alpha[texel][0] > 0.0 or imp.alpha[texel][1] > 0.0 or imp.alpha[texel][2] > 0.0:
+        T = B.res
+        R = B.reach[i]
+        u = ((float(k % T) + 0.5) / float(T) * 2.0 - 1.0) * R
+        v = ((float(k / T) + 0.5) / float(T) * 2.0 - 1.0) * R
+        x = B.centre[i] + u * imp.right + v * imp.up + imp.mid[texel] * imp.fwd
+        L = wp.cw_mul(B.albedo[t], in_scatter(m, P, lights, ph, table, x, wp.normalize(eye - x)))
+    radiance[first[j] + k] = L
+
+
+@wp.kernel
+def shade_particles(offset: int, B: Blocks, direct: wp.array(dtype=wp.vec3), travel: wp.array(dtype=wp.vec3),
+                    L: int, particle: wp.array(dtype=int), ph: Phase, table: wp.array(dtype=float), eye: wp.vec3,
+                    out: wp.array(dtype=wp.vec3)):
+    """One-particle instance i: albedo sum_l p(travel_l . w_eye) E_l T_l (sphere means)."""
+    i = wp.tid() + offset
+    p = particle[i]
+    w = wp.normalize(eye - B.centre[i])
+    acc = wp.vec3(0.0)
+    for l in range(L):
+        tr = travel[p * L + l]
+        c = float(INV_4PI)
+        if wp.length_sq(tr) > 0.0:
+            c = phase_eval(ph, table, wp.dot(tr, w))
+        acc += c * direct[p * L + l]
+    out[i] = wp.cw_mul(B.albedo[B.tpl[i]], acc)
+
+
+@wp.kernel
+def shade_surfaces(offset: int, cam: RasterView, s: Surfaces, m: LightMap, P: Particles,
+                   lights: wp.array(dtype=Light), depth: wp.array(dtype=float), colour: wp.array(dtype=wp.vec3)):
+    """Per pixel: the nearest surface's distance along the pixel ray (INF: none) and the
+    light it reflects, through the cloud (the light pass) and past the other surfaces."""
+    tid = wp.tid() + offset
+    o, d = pixel_ray(cam, tid)
+    hit, t, n, face = surface_hit(s, o, d, INF)
+    L = wp.vec3(0.0)
+    if hit:
+        if wp.dot(n, d) > 0.0:
+            n = -n
+        x = o + t * d
+        mat = s.material[face]
+        for l in range(lights.shape[0]):
+            wi, dist, e = light_incident(lights[l], x)
+            cos_l = wp.dot(n, wi)
+            if cos_l > 0.0 and not occluded(s, x + RAY_EPS * n, wi, dist):
+                tr = transmittance_rgb(optical_depth_to_light(m, P, -1, l, lights[l], x))
+                L += cos_l * wp.cw_mul(wp.cw_mul(brdf_eval(mat, n, -d, wi), e), tr)
+    depth[tid] = wp.where(hit, t, INF)
+    colour[tid] = L
+
+
+@wp.func
+def bilinear3(a: wp.array(dtype=wp.vec3), base: int, T: int, fx: float, fy: float) -> wp.vec3:
+    i0 = wp.clamp(int(wp.floor(fx)), 0, T - 1)
+    j0 = wp.clamp(int(wp.floor(fy)), 0, T - 1)
+    i1 = wp.min(i0 + 1, T - 1)
+    j1 = wp.min(j0 + 1, T - 1)
+    ax = wp.clamp(fx - float(i0), 0.0, 1.0)
+    ay = wp.clamp(fy - float(j0), 0.0, 1.0)
+    top = wp.lerp(a[base + j0 * T + i0], a[base + j0 * T + i1], ax)
+    bot = wp.lerp(a[base + j1 * T + i0], a[base + j1 * T + i1], ax)
+    return wp.lerp(top, bot, ay)
+
+
+@wp.kernel
+def gather(offset: int, cam: RasterView, B: Blocks, imp: Impostors, tl: TileLists,
+           texel_radiance: wp.array(dtype=wp.vec3), first: wp.array(dtype=int),
+           particle_radiance: wp.array(dtype=wp.vec3), surf_depth: wp.array(dtype=float),
+           surf_colour: wp.array(dtype=wp.vec3), object_depth: int, background: wp.vec3,
+           image: wp.array(dtype=wp.vec3)):
+    """Front to back over the pixel's tile: each instance adds T alpha L and scales T by
+    1 - alpha, its opacity cut where the surface lies inside it."""
+    tid = wp.tid() + offset
+    o, d = pixel_ray(cam, tid)
+    t_s = surf_depth[tid]
+    tile = pixel_tile(cam, tid, tl.tiles_x)
+    L = wp.vec3(0.0)
+    Tr = wp.vec3(1.0)
+    cos_f = wp.max(wp.dot(d, imp.fwd), 1.0e-6)
+    for q in range(tl.first[tile], tl.last[tile]):
+        i = tl.values[q]
+        t = B.tpl[i]
+        c = B.centre[i]
+        tau = wp.vec3(0.0)
+        Lq = wp.vec3(0.0)
+        if B.texel0[t] < 0:  # one particle: its chord along the ray, cut at the surface
+            a, b = ray_sphere(o, d, c, B.radius[t])
+            a = wp.max(a, 0.0)
+            if object_depth == 0:
+                if wp.dot(c - o, d) > t_s:
+                    b = a
+            else:
+                b = wp.min(b, t_s)
+            if b > a:
+                tau = B.sigma_t[t] * (b - a)
+                Lq = particle_radiance[i]
+        else:
+            t_plane = wp.dot(c - o, imp.fwd) / cos_f
+            if t_plane > 0.0:
+                x = o + t_plane * d - c
+                T = B.res
+                R = B.reach[i]
+                fx = (wp.dot(x, imp.right) / R + 1.0) * 0.5 * float(T) - 0.5
+                fy = (wp.dot(x, imp.up) / R + 1.0) * 0.5 * float(T) - 0.5
+                if fx > -1.0 and fx < float(T) and fy > -1.0 and fy < float(T):
+                    base = B.texel0[t]
+                    alpha = bilinear3(imp.alpha, base, T, fx, fy)
+                    k = wp.clamp(int(fy + 0.5), 0, T - 1) * T + wp.clamp(int(fx + 0.5), 0, T - 1)
+                    tau = -wp.vec3(wp.log(wp.max(1.0 - alpha[0], 1.0e-30)), wp.log(wp.max(1.0 - alpha[1], 1.0e-30)),
+                                   wp.log(wp.max(1.0 - alpha[2], 1.0e-30)))
+                    t0 = t_plane + imp.front[base + k] / cos_f
+                    t1 = t_plane + imp.back[base + k] / cos_f
+                    if object_depth == 0:
+                        if t_plane > t_s:
+                            tau = wp.vec3(0.0)
+                    elif t_s <= t0:
+                        tau = wp.vec3(0.0)
+                    elif t_s < t1:
+                        tau = tau * ((t_s - t0) / (t1 - t0))
+                    Lq = bilinear3(texel_radiance, first[i], T, fx, fy)
+        if tau[0] > 0.0 or tau[1] > 0.0 or tau[2] > 0.0:
+            tr = transmittance_rgb(tau)
+            L += wp.cw_mul(wp.cw_mul(Tr, wp.vec3(1.0) - tr), Lq)
+            Tr = wp.cw_mul(Tr, tr)
+            if wp.max(Tr[0], wp.max(Tr[1], Tr[2])) < 1.0e-5:
+                break
+    behind = background
+    if t_s < INF:
+        behind = surf_colour[tid]
+    image[tid] = L + wp.cw_mul(Tr, behind)
+
+
+def split_blocks(positions: np.ndarray, block_size: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """(template offsets (b, 3), instance centres (K, 3)) when ``positions`` are K copies of
+    one block of ``block_size`` particles (block-major), else None."""
+    n = len(positions)
+    if block_size <= 1 or n % block_size:
+        return None
+    blocks = positions.reshape(-1, block_size, 3).astype(np.float64)
+    centres = blocks.mean(axis=1)
+    template = blocks[0] - centres[0]
+    scale = max(float(np.abs(positions).max()), 1e-6)
+    if np.abs(blocks - centres[:, None] - template[None]).max() > 1e-5 * scale:
+        return None
+    return template, centres
+
+
+class DepthImpostors(Technique):
+    """papers/004: depth impostors of particle blocks, light slices, objects in clouds."""
+
+    NAME = NAME
+    SETTINGS = SETTINGS
+
+    def __init__(self, scene, device, settings, progress=False):
+        super().__init__(scene, device, settings, progress)
+        bad = [f"media[{k}] of type {m.type}" for k, m in enumerate(scene.media) if m.type != "particles"]
+        if bad or not scene.media:
+            raise SettingsError(f"{NAME}: renders particle media only (scene {scene.name!r} has "
+                                f"{', '.join(bad) if bad else 'no media'}; allowed: type = \"particles\")")
+        phases = {(m.phase.type, m.phase.g, None if m.phase.values is None else m.phase.values.tobytes())
+                  for m in scene.media}
+        if len(phases) > 1:
+            raise SettingsError(f"{NAME}: the particle media must share one phase function (found {len(phases)})")
+        self.uploads = SceneUploads(self, medium=False)
+        self._cloud: ParticleBuffers | None = None
+        self.blocks: Blocks | None = None
+        self._reach_t = None  # per template bounding radius (device)
+        self._owner = None  # per impostor texel: its template
+        self._textured = None  # instances with a texture (device) and their first radiance texel
+        self._first = None
+        self._particle_of = None  # one-particle instances: their particle index in the cloud
+        self.n_instances = 0
+        self.n_textured = 0
+        self.texels = 0
+        self.phase = self.table = None
+        self.light_pass: LightPass | None = None
+        self.impostors: Impostors | None = None
+        self.texel_radiance = self.particle_radiance = None
+        self.surf_depth = self.surf_colour = None
+        self.image = None
+
+    def stages(self):
+        surfaces = bool(self.scene.surfaces)
+        return self.uploads.stages() + [
+            Stage("blocks", self._blocks, reads=("medium",), settings=("impostor_res",)),
+            Stage("light", self._light, reads=("lights",),
+                  settings=("slices", "light_pass", "light_terms", "light_texels", "light_samples"),
+                  after=("blocks", "lights")),
+            Stage("impostors", self._impostors, reads=("camera",), after=("blocks",)),
+            Stage("shade", self._shade, reads=("camera",), after=("light", "impostors")),
+            Stage("surfaces_lit", self._surfaces_lit, reads=("camera",), after=("light", "surfaces"),
+                  needed=surfaces),
+            Stage("gather", self._gather, reads=("camera", "background"), settings=("object_depth",),
+                  after=("shade", "surfaces_lit") if surfaces else ("shade",)),
+        ]
+
+    # --- stages -------------------------------------------------------------------------
+
+    def _blocks(self):
+        device, T = self.device, self.settings["impostor_res"]
+        pos, radius, sigma, albedo = [], [], [], []
+        centres, tpl_of, offsets, first, count, t_radius, t_sigma, t_albedo, texel0, particle_of = ([] for _ in range(10))
+        texels = 0
+        base = 0
+        for m in self.scene.media:
+            p = np.asarray(m.positions, np.float32).reshape(-1, 3)
+            pos.append(p)
+            radius.append(np.full(len(p), m.radius, np.float32))
+            sigma.append(np.tile(np.asarray(m.sigma_t, np.float32), (len(p), 1)))
+            albedo.append(np.tile(np.asarray(m.albedo, np.float32), (len(p), 1)))
+            split = split_blocks(p, int(getattr(m, "block_size", 0)))
+            t = len(first)
+            first.append(len(offsets))
+            t_radius.append(m.radius)
+            t_sigma.append(m.sigma_t)
+            t_albedo.append(m.albedo)
+            if split is None:  # every particle an instance of a one-particle template
+                offsets.append(np.zeros(3))
+                count.append(1)
+                texel0.append(-1)
+                centres += list(p.astype(np.float64))
+                tpl_of += [t] * len(p)
+                particle_of += list(range(base, base + len(p)))
+            else:
+                template, inst = split
+                offsets += list(template)
+                count.append(len(template))
+                texel0.append(texels)
+                texels += T * T
+                centres += list(inst)
+                tpl_of += [t] * len(inst)
+                particle_of += [-1] * len(inst)
+            base += len(p)
+        self._cloud = ParticleBuffers(np.concatenate(pos), np.concatenate(radius), np.concatenate(sigma),
+                                      np.concatenate(albedo), device)
+        offsets_np = np.asarray(offsets, np.float64).reshape(-1, 3)
+        reach_t = np.array([np.sqrt((offsets_np[f:f + c] ** 2).sum(1)).max() + r
+                            for f, c, r in zip(first, count, t_radius)], np.float32)
+        tpl_of = np.asarray(tpl_of, np.int32)
+        B = Blocks()
+        f3 = lambda a: wp.array(np.asarray(a, np.float32).reshape(-1, 3), dtype=wp.vec3, device=device)  # noqa: E731
+        B.centre = f3(centres if centres else np.zeros((0, 3)))
+        B.tpl = wp.array(tpl_of, dtype=int, device=device)
+        B.reach = wp.array(reach_t[tpl_of] if len(tpl_of) else np.zeros(0, np.float32), dtype=float, device=device)
+        B.first = wp.array(np.asarray(first, np.int32), dtype=int, device=device)
+        B.count = wp.array(np.asarray(count, np.int32), dtype=int, device=device)
+        B.offsets = f3(offsets_np)
+        B.radius = wp.array(np.asarray(t_radius, np.float32), dtype=float, device=device)
+        B.sigma_t = f3(t_sigma)
+        B.albedo = f3(t_albedo)
+        B.texel0 = wp.array(np.asarray(texel0, np.int32), dtype=int, device=device)
+        B.res = T
+        self.blocks = B
+        self._reach_t = wp.array(reach_t, dtype=float, device=device)
+        owner = np.full(texels, -1, np.int32)
+        for t, t0 in enumerate(texel0):
+            if t0 >= 0:
+                owner[t0:t0 + T * T] = t
+        self._owner = wp.array(owner, dtype=int, device=device)
+        self.texels = texels
+        self.n_instances = len(tpl_of)
+        textured = np.nonzero(np.asarray(texel0)[tpl_of] >= 0)[0].astype(np.int32) if len(tpl_of) else np.zeros(0, np.int32)
+        self.n_textured = len(textured)
+        self._textured = wp.array(textured, dtype=int, device=device)
+        first_rad = np.full(max(len(tpl_of), 1), 0, np.int32)
+        first_rad[textured] = np.arange(len(textured), dtype=np.int32) * T * T
+        self._first = wp.array(first_rad, dtype=int, device=device)
+        self._particle_of = wp.array(np.maximum(np.asarray(particle_of, np.int32), 0) if particle_of
+                                     else np.zeros(1, np.int32), dtype=int, device=device)
+        self.phase, table = phase_struct(self.scene.media[0].phase)
+        self.table = wp.array(table if len(table) else np.zeros(1, np.float32), dtype=float, device=device)
+
+    def _light(self):
+        s = self.settings
+        self.light_pass = LightPass(self.device, REPRESENTATIONS[s["light_pass"]], slices=s["slices"],
+                                    terms=s["light_terms"], texels=s["light_texels"])
+        self.light_pass.build(self._cloud, self.uploads.lights, s["light_samples"])
+
+    def _impostors(self):
+        cam = self.scene.camera
+        fwd = np.asarray(cam.target, np.float64) - np.asarray(cam.origin, np.float64)
+        fwd /= np.linalg.norm(fwd)
+        right = np.cross(fwd, np.asarray(cam.up, np.float64))
+        right /= np.linalg.norm(right)
+        up = np.cross(right, fwd)
+        imp = Impostors()
+        imp.fwd, imp.right, imp.up = wp.vec3(*fwd), wp.vec3(*right), wp.vec3(*up)
+        n = max(self.texels, 1)
+        imp.alpha = wp.zeros(n, dtype=wp.vec3, device=self.device)
+        imp.front = wp.zeros(n, dtype=float, device=self.device)
+        imp.back = wp.zeros(n, dtype=float, device=self.device)
+        imp.mid = wp.zeros(n, dtype=float, device=self.device)
+        if self.texels:
+            dev.launch(make_impostors, self.texels, [self.blocks, self._reach_t, imp, imp.alpha, imp.front, imp.back,
+                                                     imp.mid, self._owner], self.device)
+        self.impostors = imp
+
+    def _shade(self):
+        device, T = self.device, self.settings["impostor_res"]
+        eye = wp.vec3(*self.scene.camera.origin)
+        L = len(self.scene.lights)
+        self.texel_radiance = wp.zeros(max(self.n_textured * T * T, 1), dtype=wp.vec3, device=device)
+        self.particle_radiance = wp.zeros(max(self.n_instances, 1), dtype=wp.vec3, device=device)
+        if not L:
+            return
+        if self.n_textured:
+            dev.launch(shade_texels, self.n_textured * T * T,
+                       [self.blocks, self.impostors, self.light_pass.map, self._cloud.struct, self.uploads.lights,
+                        self.phase, self.table, eye, self._textured, self._first, self.texel_radiance], device)
+        if self.n_instances > self.n_textured:
+            n = self._cloud.struct.centres.shape[0]
+            direct = wp.zeros(n * L, dtype=wp.vec3, device=device)
+            travel = wp.zeros(n * L, dtype=wp.vec3, device=device)
+            self.light_pass.direct(self._cloud, self.uploads.lights, self.settings["light_samples"], direct, travel)
+            dev.launch(shade_particles, self.n_instances, [self.blocks, direct, travel, L, self._particle_of,
+                                                           self.phase, self.table, eye, self.particle_radiance], device)
+
+    def _surfaces_lit(self):
+        cam = self.scene.camera
+        n = cam.width * cam.height
+        self.surf_depth = wp.empty(n, dtype=float, device=self.device)
+        self.surf_colour = wp.empty(n, dtype=wp.vec3, device=self.device)
+        dev.launch(shade_surfaces, n, [camera_view(pinhole(cam)), self.uploads.surfaces, self.light_pass.map,
+                                       self._cloud.struct, self.uploads.lights, self.surf_depth, self.surf_colour],
+                   self.device)
+
+    def _gather(self):
+        cam, device = self.scene.camera, self.device
+        n = cam.width * cam.height
+        view = camera_view(pinhole(cam))
+        if not self.scene.surfaces:
+            self.surf_depth = wp.full(n, INF, dtype=float, device=device)
+            self.surf_colour = wp.zeros(n, dtype=wp.vec3, device=device)
+        centres = self.blocks.centre.numpy().astype(np.float64)
+        reach = self.blocks.reach.numpy().astype(np.float64)
+        eye = np.asarray(cam.origin, np.float64)
+        z_far = float(np.max(np.linalg.norm(centres - eye, axis=1) + reach)) if len(centres) else 1.0
+        tl = bin_spheres(view, self.blocks.centre, self.blocks.reach, z_far, device)
+        self.image = wp.empty(n, dtype=wp.vec3, device=device)
+        dev.launch(gather, n, [view, self.blocks, self.impostors, tl, self.texel_radiance, self._first,
+                               self.particle_radiance, self.surf_depth, self.surf_colour,
+                               self.settings["object_depth"], wp.vec3(*self.scene.background), self.image], device)
+
+    def output(self):
+        return self.image
+
+    def arrays(self, for_view: bool = False, resolution: int = 128) -> dict:
+        T = self.settings["impostor_res"]
+        out = {"instances": self.blocks.centre.numpy(), "instance_reach": self.blocks.reach.numpy()}
+        if self.texels and self.impostors is not None:
+            out.update(impostor_alpha=self.impostors.alpha.numpy()[:T * T].reshape(T, T, 3),
+                       impostor_front=self.impostors.front.numpy()[:T * T].reshape(T, T),
+                       impostor_back=self.impostors.back.numpy()[:T * T].reshape(T, T))
+        if self.light_pass is not None:
+            out["light_texels"] = self.light_pass.M
+        return out
+
+
+TECHNIQUE = DepthImpostors
