@@ -56,13 +56,13 @@ def test_interrupted_sweep_keeps_its_rows_and_measures_the_rest(out):
 
 
 def test_sweeps_waiting_for_a_technique_say_so(out, capsys, monkeypatch):
-    # a paper's sweep lands before its technique (papers/004 here)
-    monkeypatch.setitem(SWEEPS, "depth-impostors", Sweep("depth-impostors", "papers/004", "depth_impostors", "paper"))
+    # a paper's sweep lands before its technique (papers/002 here)
+    monkeypatch.setitem(SWEEPS, "particle-glow", Sweep("particle-glow", "papers/002", "particle_glow", "paper"))
     assert main(["bench", "--list"]) == 0
     listing = capsys.readouterr().out
-    assert "raymarch-accuracy" in listing and "waits for depth_impostors (no issue yet)" in listing
-    assert main(["bench", "depth-impostors", "--quick", "--out", str(out)]) == 2
-    assert "waits for technique 'depth_impostors'" in capsys.readouterr().err
+    assert "raymarch-accuracy" in listing and "waits for particle_glow (no issue yet)" in listing
+    assert main(["bench", "particle-glow", "--quick", "--out", str(out)]) == 2
+    assert "waits for technique 'particle_glow'" in capsys.readouterr().err
 
 
 def test_paper_report_normalises_both_columns_to_the_first_row(tmp_path):

@@ -98,7 +98,8 @@ class ParticleBuffers:
     centres' box centre; the farthest sphere's reach), R = 1 for an empty cloud.
     """
 
-    def __init__(self, centres: np.ndarray, radius: np.ndarray, sigma_t: np.ndarray, albedo: np.ndarray, device):
+    def __init__(self, centres: np.ndarray, radius: np.ndarray, sigma_t: np.ndarray, albedo: np.ndarray, device,
+                 hash_grid: bool = True):
         centres = np.asarray(centres, np.float32).reshape(-1, 3)
         n = len(centres)
         lo, hi = (centres.min(0), centres.max(0)) if n else (np.zeros(3), np.zeros(3))
@@ -118,6 +119,7 @@ class ParticleBuffers:
             self.bvh = wp.Bvh(wp.array(centres - reach, dtype=wp.vec3, device=device),
                               wp.array(centres + reach, dtype=wp.vec3, device=device))
             s.bvh = self.bvh.id
+        if n and hash_grid:
             cells = max(1, min(128, int(np.ceil(self.R / max(r_max, 1e-6)))))
             self.hash_grid = wp.HashGrid(cells, cells, cells, device=device)
             self.hash_grid.build(s.centres, r_max)

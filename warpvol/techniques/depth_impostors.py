@@ -393,36 +393,38 @@ class DepthImpostors(Technique):
             albedo.append(np.tile(np.asarray(m.albedo, np.float32), (len(p), 1)))
             split = split_blocks(p, int(getattr(m, "block_size", 0)))
             t = len(first)
-            first.append(len(offsets))
+            first.append(sum(len(o) for o in offsets))
             t_radius.append(m.radius)
             t_sigma.append(m.sigma_t)
             t_albedo.append(m.albedo)
             if split is None:  # every particle an instance of a one-particle template
-                offsets.append(np.zeros(3))
+                offsets.append(np.zeros((1, 3)))
                 count.append(1)
                 texel0.append(-1)
-                centres += list(p.astype(np.float64))
-                tpl_of += [t] * len(p)
-                particle_of += list(range(base, base + len(p)))
+                centres.append(p.astype(np.float64))
+                tpl_of.append(np.full(len(p), t, np.int32))
+                particle_of.append(np.arange(base, base + len(p), dtype=np.int32))
             else:
                 template, inst = split
-                offsets += list(template)
+                offsets.append(template)
                 count.append(len(template))
                 texel0.append(texels)
                 texels += T * T
-                centres += list(inst)
-                tpl_of += [t] * len(inst)
-                particle_of += [-1] * len(inst)
+                centres.append(inst)
+                tpl_of.append(np.full(len(inst), t, np.int32))
+                particle_of.append(np.full(len(inst), -1, np.int32))
             base += len(p)
         self._cloud = ParticleBuffers(np.concatenate(pos), np.concatenate(radius), np.concatenate(sigma),
-                                      np.concatenate(albedo), device)
-        offsets_np = np.asarray(offsets, np.float64).reshape(-1, 3)
+                                      np.concatenate(albedo), device, hash_grid=False)
+        offsets_np = np.concatenate(offsets).astype(np.float64)
+        centres = np.concatenate(centres)
+        tpl_of = np.concatenate(tpl_of)
+        particle_of = np.concatenate(particle_of)
         reach_t = np.array([np.sqrt((offsets_np[f:f + c] ** 2).sum(1)).max() + r
                             for f, c, r in zip(first, count, t_radius)], np.float32)
-        tpl_of = np.asarray(tpl_of, np.int32)
         B = Blocks()
         f3 = lambda a: wp.array(np.asarray(a, np.float32).reshape(-1, 3), dtype=wp.vec3, device=device)  # noqa: E731
-        B.centre = f3(centres if centres else np.zeros((0, 3)))
+        B.centre = f3(centres)
         B.tpl = wp.array(tpl_of, dtype=int, device=device)
         B.reach = wp.array(reach_t[tpl_of] if len(tpl_of) else np.zeros(0, np.float32), dtype=float, device=device)
         B.first = wp.array(np.asarray(first, np.int32), dtype=int, device=device)
@@ -448,8 +450,8 @@ class DepthImpostors(Technique):
         first_rad = np.full(max(len(tpl_of), 1), 0, np.int32)
         first_rad[textured] = np.arange(len(textured), dtype=np.int32) * T * T
         self._first = wp.array(first_rad, dtype=int, device=device)
-        self._particle_of = wp.array(np.maximum(np.asarray(particle_of, np.int32), 0) if particle_of
-                                     else np.zeros(1, np.int32), dtype=int, device=device)
+        self._particle_of = wp.array(np.maximum(particle_of, 0) if len(particle_of) else np.zeros(1, np.int32),
+                                     dtype=int, device=device)
         self.phase, table = phase_struct(self.scene.media[0].phase)
         self.table = wp.array(table if len(table) else np.zeros(1, np.float32), dtype=float, device=device)
 
