@@ -688,6 +688,130 @@ def _row_fps(table: dict, params: dict):
     return None
 
 
+# --- depth impostors (papers/004) ----------------------------------------------------------
+
+IMPOSTOR_SUN = {"type": "directional", "direction": [0.5, -0.8, -0.3], "irradiance": 2.0}
+
+
+def impostor_scene(quick: bool, n: int = 8000, per_block: int = 200, width: int = 512, surface: bool = False,
+                   seed: int = 3):
+    """papers/004's set-up: ``n`` particles built of n / per_block copies of one block (one
+    particle a block: the paper's "no blocks"), one directional light. The block's radius
+    scales as (per_block / n)^(1/3), so the cloud's volume and density stay put; particle
+    radius 0.04 x (8000 / n)^(1/3), sigma_t 12 (sigma_t r = 0.48 at 8000), albedo 0.9, HG
+    g = 0.3, a dim sky. ``surface``: a grey plane through the cloud's centre, facing the camera
+    at an angle (an object in the cloud)."""
+    if quick:
+        n, per_block, width = min(n, 400), min(per_block, 20), min(width, 32)
+    per_block = max(1, min(per_block, n))
+    blocks = n // per_block
+    radius = 0.04 * (8000 / n) ** (1 / 3)
+    d = {"name": "impostor-cloud", "background": [0.05, 0.07, 0.1],
+         "camera": {"origin": [0.0, 0.3, 4.2], "target": [0, 0, 0], "up": [0, 1, 0], "fov_y": 40.0, "width": width,
+                    "height": width},
+         "lights": [IMPOSTOR_SUN],
+         "media": [{"type": "particles", "radius": radius, "sigma_t": 12.0, "albedo": 0.9,
+                    "phase": {"type": "hg", "g": 0.3},
+                    "generator": {"kind": "blocks", "blocks": blocks, "per_block": per_block, "seed": seed,
+                                  "extent": 1.0, "block_extent": (per_block / (blocks * per_block)) ** (1 / 3)}}]}
+    if surface:
+        d["surfaces"] = [{"type": "plane", "center": [0.0, 0.0, 0.0], "normal": [0.3, 0.2, 1.0], "size": [4.0, 4.0],
+                          "diffuse": 0.5}]
+    return wv.load_scene(d)
+
+
+def _impostor_fig5_grid(quick: bool) -> list[dict]:
+    return [{"blocks": b} for b in ((0, 20) if quick else (0, 1600, 800, 400, 40, 20))]
+
+
+def _impostor_frame(params: dict, device: str, quick: bool) -> dict:
+    """A frame of an animated cloud under a moving light (medium and lights changed every
+    frame, so every stage runs), 512x512; blocks = 0: every particle on its own."""
+    n = params.get("particles", 8000)
+    blocks = params.get("blocks")
+    per_block = params.get("per_block") or (1 if not blocks else n // blocks)
+    scene = impostor_scene(quick, n, per_block, params.get("width", 512))
+    r = wv.Renderer(scene, technique="depth_impostors", device=device)
+    row = time_frames(r, repeats=2 if quick else 8, invalidate=("medium", "lights"))
+    t = r.technique
+    row.update(instances=t.n_instances, per_block=per_block, light_texels=t.light_pass.M,
+               scene=f"{len(scene.media[0].positions)} particles, {t.n_instances} instances of {per_block}, "
+                     f"{scene.camera.width}x{scene.camera.height}, one sun")
+    return row
+
+
+def _impostor_sweep_grid(quick: bool) -> list[dict]:
+    if quick:
+        return [{"particles": 400, "per_block": b} for b in (1, 20)]
+    return [{"particles": n, "per_block": b} for n in (1000, 8000, 64000) for b in (1, 5, 20, 50, 200, 1000) if b <= n]
+
+
+def _impostor_accuracy_grid(quick: bool) -> list[dict]:
+    if quick:
+        return [{"light": "slices", "terms": 4, "res": 8}, {"light": "exact", "terms": 0, "res": 8}]
+    return ([{"light": "slices", "terms": s, "res": 16} for s in (1, 2, 4, 8, 16, 32)]
+            + [{"light": "slices", "terms": 4, "res": r} for r in (4, 8, 32, 64)]
+            + [{"light": "fourier", "terms": k, "res": 16} for k in (2, 4, 8, 16)]
+            + [{"light": "exact", "terms": 0, "res": r} for r in (16, 64)])
+
+
+def _impostor_settings(params: dict) -> dict:
+    kind = {"exact": 0, "slices": 1, "fourier": 2}[params["light"]]
+    out = {"light_pass": kind, "impostor_res": params["res"]}
+    if kind == 1:
+        out["slices"] = params["terms"]
+    elif kind == 2:
+        out["light_terms"] = params["terms"]
+    return out
+
+
+def _impostor_accuracy(params: dict, device: str, quick: bool) -> dict:
+    """The image against the single-scattering reference at pixel centres, 2000 particles in
+    40 blocks of 50 (96x96); and how much the technique leaves out: the single-scattering
+    reference's mean over the multiple-scattering one's."""
+    n, b, w = (400, 20, 24) if quick else (2000, 50, 96)
+    scene = impostor_scene(quick, n, b, w)
+    r = wv.Renderer(scene, technique="depth_impostors", device=device, **_impostor_settings(params))
+    row = time_frames(r, repeats=2 if quick else 5, invalidate=("medium", "lights"))
+    spp = 16 if quick else 256
+    ref, floor = reference_image(scene, device, spp=spp, max_bounces=1, pixel_area=0)
+    ms, _ = reference_image(scene, device, spp=spp, max_bounces=-1, pixel_area=0)
+    image = row["frame"].image
+    row["rel_rmse"] = wv.relative_rmse(image, ref)
+    row["rel_rmse_corrected"] = max(row["rel_rmse"] ** 2 - floor**2, 0.0) ** 0.5
+    row["mean_ratio"] = float(image.mean() / ref.mean())
+    row["single_of_multiple"] = float(ref.mean() / ms.mean())
+    row["reference"] = {"spp": 2 * spp, "max_bounces": 1, "pixel_area": 0, "rel_rmse_floor": floor}
+    row["scene"] = f"{n} particles in {n // b} blocks of {b}, {w}x{w}, one sun"
+    return row
+
+
+def _impostor_objects_grid(quick: bool) -> list[dict]:
+    return [{"object_depth": k, "per_block": b} for b in ((20,) if quick else (50, 200)) for k in (0, 1)]
+
+
+def _impostor_objects(params: dict, device: str, quick: bool) -> dict:
+    """Objects in clouds (section 2.4): a plane through the cloud; depth impostors (the block's
+    opacity cut at the surface) against billboards (a block wholly in front or behind),
+    both against the single-scattering reference, over the image and over the pixels where
+    the plane lies inside the cloud (the reference's cloud changes there by over 2%)."""
+    n, w = (400, 24) if quick else (2000, 96)
+    b = params["per_block"]
+    scene = impostor_scene(quick, n, b, w, surface=True)
+    r = wv.Renderer(scene, technique="depth_impostors", device=device, object_depth=params["object_depth"],
+                    light_pass=0)
+    row = time_frames(r, repeats=2 if quick else 5, invalidate=("medium", "lights"))
+    spp = 16 if quick else 256
+    ref, floor = reference_image(scene, device, spp=spp, max_bounces=1, pixel_area=0)
+    image = row["frame"].image
+    row["rel_rmse"] = wv.relative_rmse(image, ref)
+    row["rel_rmse_corrected"] = max(row["rel_rmse"] ** 2 - floor**2, 0.0) ** 0.5
+    row["reference"] = {"spp": 2 * spp, "max_bounces": 1, "pixel_area": 0, "rel_rmse_floor": floor}
+    row["scene"] = f"{n} particles in {n // b} blocks of {b}, a plane through the cloud, {w}x{w}"
+    row["images"] = {"image": image}
+    return row
+
+
 # --- the reference's own speed -----------------------------------------------------------------
 
 SPEED_SCENES = ["fog-box", "point-in-fog", "smoke-grid", "rbf-single", "rbf-cornell", "rbf-thick-fog", "particle-cloud"]
@@ -793,6 +917,19 @@ def _speed(params: dict, device: str, quick: bool) -> dict:
 
 
 SWEEPS: dict[str, Sweep] = {s.name: s for s in [
+    Sweep("depth-impostors", "papers/004 figure 5: 8000 particles under one directional light, no blocks and 1600, "
+          "800, 400, 40, 20 blocks; a frame of an animated cloud under a moving light at 512x512",
+          "depth_impostors", "paper", _impostor_fig5_grid, _impostor_frame, paper=("depth_impostors",),
+          figure=_row_fps, issue=15),
+    Sweep("depth-impostors-sweep", "depth_impostors over N (1000, 8000, 64000 particles) and the block size "
+          "(1..1000 particles a block): where the fastest block size lies as N grows",
+          "depth_impostors", "paper", _impostor_sweep_grid, _impostor_frame, issue=15),
+    Sweep("depth-impostors-accuracy", "depth_impostors against the single-scattering reference: light-pass slices "
+          "S = 1..32, impostor resolution 4..64, Fourier terms K = 2..16 and the exact light",
+          "depth_impostors", "accuracy", _impostor_accuracy_grid, _impostor_accuracy, issue=15),
+    Sweep("depth-impostors-objects", "objects in clouds (papers/004 section 2.4): a plane through the cloud, depth "
+          "impostors against billboards, both against the single-scattering reference",
+          "depth_impostors", "accuracy", _impostor_objects_grid, _impostor_objects, issue=15),
     Sweep("raymarch-accuracy", "raymarch: relative RMSE against the single-scattering reference vs ms per frame, "
           "sweeping steps (= shadow_steps) and the baked light-volume size (0 = marched shadow rays)",
           "raymarch", "accuracy", _raymarch_grid, _raymarch_accuracy),
