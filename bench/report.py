@@ -75,6 +75,9 @@ def accuracy_section(rows: list[dict], png: Path) -> list[str]:
         lines.append(f"| {_params(r)} | {r['median_ms']:.2f} ({lo:.2f}..{hi:.2f}) | {r['rel_rmse']:.4f} | "
                      f"{r['rel_rmse_corrected']:.4f} | " + (f"{r['rel_rmse_raymarch']:.4f} | " if extra else "")
                      + f"{'yes' if i in front else ''} | {_stages(r)} | {r['peak_mem_mb']:.0f} |")
+    if "rel_rmse_band" in rows[0]:  # objects in clouds: the error where the surface lies inside the cloud
+        lines += ["", "| parameters | relative RMSE where the surface lies inside a block | pixels |", "|---|---|---|"]
+        lines += [f"| {_params(r)} | {r['rel_rmse_band']:.4f} | {r['band_pixels']} |" for r in rows]
     floor = rows[0]["reference"]["rel_rmse_floor"]
     lines += ["", f"Reference: {rows[0]['reference']['spp']} spp, pixel centres, max_bounces = "
               f"{rows[0]['reference']['max_bounces']}. Its own noise, estimated from two seeds, is a relative "

@@ -786,6 +786,30 @@ def _impostor_accuracy(params: dict, device: str, quick: bool) -> dict:
     return row
 
 
+def _plane_in_blocks(scene, centres: np.ndarray, reach: np.ndarray) -> np.ndarray:
+    """(H, W) mask of the pixels whose ray meets the scene's plane inside some block's
+    bounding sphere (where depth impostors and billboards differ)."""
+    cam, plane = scene.camera, scene.surfaces[0]
+    o = np.asarray(cam.origin, float)
+    f = np.asarray(cam.target, float) - o
+    f /= np.linalg.norm(f)
+    rgt = np.cross(f, cam.up)
+    rgt /= np.linalg.norm(rgt)
+    up = np.cross(rgt, f)
+    th = np.tan(np.radians(cam.fov_y) / 2)
+    px, py = np.meshgrid(np.arange(cam.width) + 0.5, np.arange(cam.height) + 0.5)
+    sx, sy = 2 * px / cam.width - 1, 1 - 2 * py / cam.height
+    d = f + sx[..., None] * rgt * th * cam.width / cam.height + sy[..., None] * up * th
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    v = np.asarray(plane.vertices, float)
+    n = np.cross(v[1] - v[0], v[2] - v[0])
+    n /= np.linalg.norm(n)
+    t_s = ((v[0] - o) @ n) / (d @ n)
+    hit = o + t_s[..., None] * d
+    dist = np.linalg.norm(hit[..., None, :] - np.asarray(centres, float)[None, None], axis=-1)
+    return np.any(dist < np.asarray(reach, float)[None, None], axis=-1) & (t_s > 0)
+
+
 def _impostor_objects_grid(quick: bool) -> list[dict]:
     return [{"object_depth": k, "per_block": b} for b in ((20,) if quick else (50, 200)) for k in (0, 1)]
 
@@ -806,8 +830,12 @@ def _impostor_objects(params: dict, device: str, quick: bool) -> dict:
     image = row["frame"].image
     row["rel_rmse"] = wv.relative_rmse(image, ref)
     row["rel_rmse_corrected"] = max(row["rel_rmse"] ** 2 - floor**2, 0.0) ** 0.5
+    band = _plane_in_blocks(scene, r.technique.blocks.centre.numpy(), r.technique.blocks.reach.numpy())
+    row["band_pixels"] = int(band.sum())
+    row["rel_rmse_band"] = wv.relative_rmse(image[band], ref[band]) if band.any() else float("nan")
     row["reference"] = {"spp": 2 * spp, "max_bounces": 1, "pixel_area": 0, "rel_rmse_floor": floor}
-    row["scene"] = f"{n} particles in {n // b} blocks of {b}, a plane through the cloud, {w}x{w}"
+    row["scene"] = (f"{n} particles in {n // b} blocks of {b}, a plane through the cloud, {w}x{w}; band: the "
+                    f"{row['band_pixels']} pixels where the plane lies inside a block's bounding sphere")
     row["images"] = {"image": image}
     return row
 
