@@ -1,6 +1,8 @@
 """pyvista views: off-screen pictures of every built-in scene show something, and the
 array-to-mesh functions keep the arrays' values and layout."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -115,6 +117,30 @@ def test_illumination_network_view():
     assert edges.n_cells == int((arrays["visibility"][:, d] >= 0).sum()) > 0
     p = pv.Plotter(off_screen=True, window_size=(200, 150))
     viz.technique_actors(p, "illumination_network", arrays)
+    img = p.screenshot(return_img=True)
+    p.close()
+    assert not_blank(img) > 0.02
+
+
+def test_depth_impostors_view(tmp_path):
+    """Instances, one block's impostor layers (its opacity plane holds the impostor's opacity)
+    and the light slices (one plane per slice, the last the most opaque), drawn from the
+    technique's own arrays."""
+    scene = Path(__file__).resolve().parent.parent / "scenes" / "impostor-cloud.toml"
+    r = wv.Renderer(str(scene), technique="depth_impostors", device="cpu", impostor_res=8,
+                    slices=3)
+    r.render()
+    arrays = r.arrays(for_view=True)
+    i = arrays["impostor_instance"]
+    layers = viz.impostor_layers(arrays["instances"][i], arrays["impostor_frame"], float(arrays["instance_reach"][i]),
+                                 arrays["impostor_alpha"], arrays["impostor_front"], arrays["impostor_back"])
+    np.testing.assert_allclose(np.sort(layers[0].point_data["opacity"]), np.sort(arrays["impostor_alpha"].mean(-1).ravel()),
+                               rtol=1e-6)
+    planes = viz.light_slice_planes(arrays["light_faces"][0], arrays["light_slices"][0])
+    assert len(planes) == 3
+    assert planes[-1].point_data["opacity"].mean() >= planes[0].point_data["opacity"].mean() > 0
+    p = pv.Plotter(off_screen=True, window_size=(200, 150))
+    viz.technique_actors(p, "depth_impostors", arrays)
     img = p.screenshot(return_img=True)
     p.close()
     assert not_blank(img) > 0.02

@@ -12,7 +12,9 @@ add their own views here as they land. Uses only warpvol's public API.
 from .views import (
     camera_frustum,
     depth_surface,
+    impostor_layers,
     lattice_grid,
+    light_slice_planes,
     light_glyphs,
     network_mesh,
     particles_mesh,
@@ -24,6 +26,7 @@ from .views import (
 )
 
 __all__ = [
-    "camera_frustum", "depth_surface", "lattice_grid", "light_glyphs", "network_mesh", "particles_mesh",
+    "camera_frustum", "depth_surface", "impostor_layers", "lattice_grid", "light_glyphs", "light_slice_planes",
+    "network_mesh", "particles_mesh",
     "scene_plotter", "slice_plane", "surfaces_mesh", "technique_actors", "volume_grid",
 ]

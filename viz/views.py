@@ -266,5 +266,65 @@ def _illumination_network_actors(plotter: pv.Plotter, arrays: dict) -> None:
         plotter.add_mesh(edges, scalars="alpha", cmap="viridis", line_width=2, show_scalar_bar=False)
 
 
+def impostor_layers(centre, frame, reach: float, alpha, front, back) -> list[pv.PolyData]:
+    """A block's depth impostor as three layers in the world: its opacity on the plane through
+    the block's centre facing the camera, and its front and back depths as surfaces (the
+    texels the block covers)."""
+    fwd, right, up = (np.asarray(v, np.float64) for v in frame)
+    T = alpha.shape[0]
+    c = (np.arange(T) + 0.5) / T * 2.0 - 1.0
+    u, v = np.meshgrid(c * reach, c * reach)
+    base = np.asarray(centre, np.float64) + u[..., None] * right + v[..., None] * up
+    plane = pv.StructuredGrid(*(base[..., k] for k in range(3)))
+    plane.point_data["opacity"] = np.asarray(alpha, np.float32).mean(-1).ravel(order="F")
+    covered = np.asarray(alpha).mean(-1) > 0
+    layers = [plane]
+    for depth, name in ((front, "front"), (back, "back")):
+        pts = (base + np.asarray(depth)[..., None] * fwd)[covered]
+        layers.append(depth_surface(pts, np.asarray(depth)[covered], name=name))
+    return layers
+
+
+def light_slice_planes(face: dict, slices) -> list[pv.StructuredGrid]:
+    """The light-pass slices of one face as planes across the light's frame, each coloured by
+    the opacity accumulated up to its depth (1 - e^-tau)."""
+    M, _, C, _ = slices.shape
+    o, fwd, right, up = (np.asarray(face[k], np.float64) for k in ("origin", "forward", "right", "up"))
+    half, near, far = float(face["half"]), float(face["near"]), float(face["far"])
+    c = (np.arange(M) + 0.5) / M * 2.0 - 1.0
+    u, v = np.meshgrid(c, c)  # (j, i): v down the rows, u along them
+    out = []
+    for k in range(1, C):
+        t = near + k * (far - near) / (C - 1)
+        if face["ortho"]:
+            pts = o + half * (u[..., None] * right + v[..., None] * up) + t * fwd
+        else:
+            d = fwd + half * (u[..., None] * right + v[..., None] * up)
+            pts = o + t * d / np.linalg.norm(d, axis=-1, keepdims=True)
+        grid = pv.StructuredGrid(*(pts[..., a] for a in range(3)))
+        grid.point_data["opacity"] = (1.0 - np.exp(-slices[:, :, k].mean(-1))).astype(np.float32).ravel(order="F")
+        out.append(grid)
+    return out
+
+
+def _depth_impostors_actors(plotter: pv.Plotter, arrays: dict) -> None:
+    """The instances' bounding spheres, one block's impostor layers, and the light slices."""
+    centres = np.asarray(arrays["instances"], np.float32)
+    if len(centres):
+        plotter.add_mesh(pv.PolyData(centres), color="white", render_points_as_spheres=True, point_size=6)
+    if arrays.get("impostor_instance", -1) >= 0:
+        i = arrays["impostor_instance"]
+        layers = impostor_layers(centres[i], arrays["impostor_frame"], float(arrays["instance_reach"][i]),
+                                 arrays["impostor_alpha"], arrays["impostor_front"], arrays["impostor_back"])
+        plotter.add_mesh(layers[0], scalars="opacity", cmap="gray", opacity=0.8, show_scalar_bar=False)
+        for layer, cmap in zip(layers[1:], ("viridis", "plasma")):
+            if layer.n_points:
+                plotter.add_mesh(layer, cmap=cmap, point_size=4, show_scalar_bar=False)
+    for face, slices in zip(arrays.get("light_faces", []), arrays.get("light_slices", [])):
+        for grid in light_slice_planes(face, slices):
+            plotter.add_mesh(grid, scalars="opacity", cmap="Blues", opacity=0.25, show_scalar_bar=False)
+
+
 _TECHNIQUE_VIEWS = {"light_shafts": _light_shafts_actors, "rbf_propagation": _rbf_propagation_actors,
-                    "illumination_network": _illumination_network_actors}
+                    "illumination_network": _illumination_network_actors,
+                    "depth_impostors": _depth_impostors_actors}

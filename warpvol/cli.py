@@ -142,12 +142,13 @@ def cmd_view(args) -> int:
         from vtkmodules.vtkCommonCore import vtkObject
 
         vtkObject.GlobalWarningDisplayOff()
-    scene = wv.load_scene(args.scene, args.set or [])
+    settings, overrides = _parse_set(args.set or [], args.technique) if args.technique else ({}, args.set or [])
+    scene = wv.load_scene(args.scene, overrides)
     plotter = scene_plotter(scene, off_screen=args.screenshot is not None)
     if args.technique:
         from viz import technique_actors
 
-        renderer = wv.Renderer(scene, technique=args.technique, device=args.device)
+        renderer = wv.Renderer(scene, technique=args.technique, device=args.device, **settings)
         renderer.render()
         technique_actors(plotter, args.technique, renderer.arrays(for_view=True))
     if args.screenshot:

@@ -570,6 +570,18 @@ class LightPass:
                        self.device, min_split=256)
         return out.numpy()[: which.shape[0] * L].reshape(which.shape[0], L, 3)
 
+    def layers(self) -> dict:
+        """For looking inside: every face's frame (origin, forward, right, up, half, near, far,
+        ortho; numpy) and, for a slices map, the optical depth at each slice depth as
+        (faces, M, M, S + 1, 3)."""
+        faces = self.map.faces.numpy() if self.map is not None and self.map.faces.shape[0] else []
+        out = {"faces": [{k: np.asarray(f[k]) for k in ("origin", "forward", "right", "up", "half", "near", "far",
+                                                           "ortho")} for f in faces]}
+        if self.map is not None and self.map.kind == SLICES and len(faces):
+            M, C = self.map.M, self.map.C
+            out["slices"] = self._data.numpy().reshape(len(faces), M, M, C, 3)
+        return out
+
     def optical_depth(self, cloud: ParticleBuffers, lights: wp.array, light: int, points: np.ndarray,
                       m: LightMap | None = None) -> np.ndarray:
         """(n, 3) optical depth from light ``light`` to each of ``points`` (n, 3), from map ``m``

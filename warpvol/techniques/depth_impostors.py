@@ -530,14 +530,24 @@ class DepthImpostors(Technique):
         return self.image
 
     def arrays(self, for_view: bool = False, resolution: int = 128) -> dict:
+        """The instances (centres, bounding radii), the first textured template's impostor
+        layers (opacity, front and back depth; T x T) with the frame they face and the
+        instance that shows them, and the light pass's faces and slices."""
         T = self.settings["impostor_res"]
         out = {"instances": self.blocks.centre.numpy(), "instance_reach": self.blocks.reach.numpy()}
         if self.texels and self.impostors is not None:
-            out.update(impostor_alpha=self.impostors.alpha.numpy()[:T * T].reshape(T, T, 3),
-                       impostor_front=self.impostors.front.numpy()[:T * T].reshape(T, T),
-                       impostor_back=self.impostors.back.numpy()[:T * T].reshape(T, T))
+            imp = self.impostors
+            out.update(impostor_alpha=imp.alpha.numpy()[:T * T].reshape(T, T, 3),
+                       impostor_front=imp.front.numpy()[:T * T].reshape(T, T),
+                       impostor_back=imp.back.numpy()[:T * T].reshape(T, T),
+                       impostor_frame=np.array([list(imp.fwd), list(imp.right), list(imp.up)], np.float32),
+                       impostor_instance=int(self._textured.numpy()[0]) if self.n_textured else -1)
         if self.light_pass is not None:
             out["light_texels"] = self.light_pass.M
+            layers = self.light_pass.layers()
+            out["light_faces"] = layers["faces"]
+            if "slices" in layers:
+                out["light_slices"] = layers["slices"]
         return out
 
 
