@@ -152,6 +152,7 @@ def test_valid_scenes_render_finite_and_non_negative(scene):
     the reference and raymarch accept every scene."""
     loaded = wv.load_scene(scene)
     runs = list(TINY.items()) + [("illumination_network", {**TINY["illumination_network"], **lp}) for lp in LIGHT_PASSES]
+    runs.append(("depth_impostors", {**TINY["depth_impostors"], "cluster": 3}))  # a cloud grouped into blocks
     for technique, tiny in runs:
         try:
             image = wv.render(loaded, technique=technique, device="cpu", **tiny).image

@@ -8,7 +8,9 @@ one block of b particles, so a frame renders the block once (b) and then its ins
 * ``blocks`` (reads the medium): the particles to the device, and the blocks. A medium made
   by ``generator = {kind = "blocks", ...}`` (``block_size`` b > 1) is K instances of one
   template block: the block's particles about its centroid, and the K centroids. Any other
-  particle medium is N instances of a one-particle template (the paper's "no blocks" row).
+  particle medium is grouped into blocks of ``cluster`` particles, neighbours along a
+  Morton curve (each group its own template and one instance); ``cluster = 1`` (default)
+  makes every particle an instance of a one-particle template (the paper's "no blocks").
 * ``light`` (reads the lights): the shared light pass (media/lightpass.py) over the cloud:
   per light, the opacity accumulated up to S depths (the paper's light slices, S = 4 in one
   RGBA texture; here ``slices``), read at any point by interpolating between the two
@@ -63,6 +65,8 @@ from ..upload import SceneUploads, pinhole
 NAME = "depth_impostors"
 SETTINGS = {
     "impostor_res": Setting(16, 1, 512, "texels across a block's depth impostor (T x T)"),
+    "cluster": Setting(1, 1, 100000, "a cloud not built of blocks is grouped into blocks of this many particles "
+                                     "(neighbours in Morton order); 1: every particle on its own"),
     "slices": Setting(4, 1, 1024, "light-pass depth slices S (the paper: 4, in one RGBA texture)"),
     "light_pass": Setting(1, 0, 2, "0 exact transmittance (BVH ray queries), 1 depth slices, 2 Fourier opacity map"),
     "light_terms": Setting(8, 1, 256, "Fourier terms K (light_pass = 2)"),
@@ -313,6 +317,21 @@ def gather(offset: int, cam: RasterView, B: Blocks, imp: Impostors, tl: TileList
     image[tid] = L + wp.cw_mul(Tr, behind)
 
 
+def morton_groups(positions: np.ndarray, size: int) -> list[np.ndarray]:
+    """Indices of ``positions`` in groups of ``size`` (the last may be smaller), neighbours
+    along a Morton (Z-order) curve over their bounding box: compact blocks, found in
+    O(N log N)."""
+    p = np.asarray(positions, np.float64)
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    q = np.clip(((p - lo) / np.maximum(hi - lo, 1e-12) * 1023).astype(np.int64), 0, 1023)
+    code = np.zeros(len(p), np.int64)
+    for bit in range(10):
+        for axis in range(3):
+            code |= ((q[:, axis] >> bit) & 1) << (3 * bit + axis)
+    order = np.argsort(code, kind="stable")
+    return [order[k:k + size] for k in range(0, len(order), size)]
+
+
 def split_blocks(positions: np.ndarray, block_size: int) -> tuple[np.ndarray, np.ndarray] | None:
     """(template offsets (b, 3), instance centres (K, 3)) when ``positions`` are K copies of
     one block of ``block_size`` particles (block-major), else None."""
@@ -365,7 +384,7 @@ class DepthImpostors(Technique):
     def stages(self):
         surfaces = bool(self.scene.surfaces)
         return self.uploads.stages() + [
-            Stage("blocks", self._blocks, reads=("medium",), settings=("impostor_res",)),
+            Stage("blocks", self._blocks, reads=("medium",), settings=("impostor_res", "cluster")),
             Stage("light", self._light, reads=("lights",),
                   settings=("slices", "light_pass", "light_terms", "light_texels", "light_samples"),
                   after=("blocks", "lights")),
@@ -384,6 +403,19 @@ class DepthImpostors(Technique):
         pos, radius, sigma, albedo = [], [], [], []
         centres, tpl_of, offsets, first, count, t_radius, t_sigma, t_albedo, texel0, particle_of = ([] for _ in range(10))
         texels = 0
+
+        def template(offs: np.ndarray, m, textured: bool) -> int:
+            nonlocal texels
+            first.append(sum(len(o) for o in offsets))
+            offsets.append(np.asarray(offs, np.float64).reshape(-1, 3))
+            count.append(len(offsets[-1]))
+            t_radius.append(m.radius)
+            t_sigma.append(m.sigma_t)
+            t_albedo.append(m.albedo)
+            texel0.append(texels if textured else -1)
+            texels += T * T if textured else 0
+            return len(first) - 1
+
         base = 0
         for m in self.scene.media:
             p = np.asarray(m.positions, np.float32).reshape(-1, 3)
@@ -392,27 +424,25 @@ class DepthImpostors(Technique):
             sigma.append(np.tile(np.asarray(m.sigma_t, np.float32), (len(p), 1)))
             albedo.append(np.tile(np.asarray(m.albedo, np.float32), (len(p), 1)))
             split = split_blocks(p, int(getattr(m, "block_size", 0)))
-            t = len(first)
-            first.append(sum(len(o) for o in offsets))
-            t_radius.append(m.radius)
-            t_sigma.append(m.sigma_t)
-            t_albedo.append(m.albedo)
-            if split is None:  # every particle an instance of a one-particle template
-                offsets.append(np.zeros((1, 3)))
-                count.append(1)
-                texel0.append(-1)
-                centres.append(p.astype(np.float64))
-                tpl_of.append(np.full(len(p), t, np.int32))
-                particle_of.append(np.arange(base, base + len(p), dtype=np.int32))
-            else:
-                template, inst = split
-                offsets.append(template)
-                count.append(len(template))
-                texel0.append(texels)
-                texels += T * T
+            if split is not None:  # K copies of one block
+                offs, inst = split
+                t = template(offs, m, True)
                 centres.append(inst)
                 tpl_of.append(np.full(len(inst), t, np.int32))
                 particle_of.append(np.full(len(inst), -1, np.int32))
+            elif self.settings["cluster"] > 1 and len(p) > 1:  # grouped: each group a template of its own
+                for group in morton_groups(p, self.settings["cluster"]):
+                    g = p[group].astype(np.float64)
+                    c = g.mean(axis=0)
+                    t = template(g - c, m, len(g) > 1)
+                    centres.append(c[None])
+                    tpl_of.append(np.array([t], np.int32))
+                    particle_of.append(np.array([base + group[0] if len(g) == 1 else -1], np.int32))
+            else:  # every particle an instance of a one-particle template
+                t = template(np.zeros((1, 3)), m, False)
+                centres.append(p.astype(np.float64))
+                tpl_of.append(np.full(len(p), t, np.int32))
+                particle_of.append(np.arange(base, base + len(p), dtype=np.int32))
             base += len(p)
         self._cloud = ParticleBuffers(np.concatenate(pos), np.concatenate(radius), np.concatenate(sigma),
                                       np.concatenate(albedo), device, hash_grid=False)
