@@ -478,6 +478,9 @@ class LightPass:
     def build(self, cloud: ParticleBuffers, lights: wp.array, samples: int = 4) -> LightMap:
         """The map of ``cloud`` (its bounding ball ``centre``, ``R``) for every light."""
         kind = REPRESENTATIONS.index(self.representation)
+        if (kind == EXACT or self.tolerance > 0.0) and cloud.struct.centres.shape[0] and cloud.bvh is None:
+            raise ValueError("the exact light pass (and a map's check against it) needs the cloud's BVH "
+                             "(ParticleBuffers(..., bvh=True))")
         m = LightMap()
         m.kind = kind
         n = cloud.struct.centres.shape[0]

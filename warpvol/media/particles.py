@@ -96,10 +96,12 @@ class ParticleBuffers:
     Parameters: ``centres`` (N, 3), ``radius`` (N,), ``sigma_t`` and ``albedo`` (N, 3),
     float32 arrays in scene units. ``centre`` and ``R`` are the cloud's bounding ball (the
     centres' box centre; the farthest sphere's reach), R = 1 for an empty cloud.
+    ``hash_grid`` / ``bvh`` = False skip building those (a user that never looks a point or a
+    ray up saves the build).
     """
 
     def __init__(self, centres: np.ndarray, radius: np.ndarray, sigma_t: np.ndarray, albedo: np.ndarray, device,
-                 hash_grid: bool = True):
+                 hash_grid: bool = True, bvh: bool = True):
         centres = np.asarray(centres, np.float32).reshape(-1, 3)
         n = len(centres)
         lo, hi = (centres.min(0), centres.max(0)) if n else (np.zeros(3), np.zeros(3))
@@ -114,7 +116,7 @@ class ParticleBuffers:
         s.r_max = r_max
         self.hash_grid = self.bvh = None
         s.grid = s.bvh = wp.uint64(0)
-        if n:
+        if n and bvh:
             reach = np.asarray(radius, np.float32).reshape(-1, 1)
             self.bvh = wp.Bvh(wp.array(centres - reach, dtype=wp.vec3, device=device),
                               wp.array(centres + reach, dtype=wp.vec3, device=device))

@@ -384,7 +384,7 @@ class DepthImpostors(Technique):
     def stages(self):
         surfaces = bool(self.scene.surfaces)
         return self.uploads.stages() + [
-            Stage("blocks", self._blocks, reads=("medium",), settings=("impostor_res", "cluster")),
+            Stage("blocks", self._blocks, reads=("medium",), settings=("impostor_res", "cluster", "light_pass")),
             Stage("light", self._light, reads=("lights",),
                   settings=("slices", "light_pass", "light_terms", "light_texels", "light_samples"),
                   after=("blocks", "lights")),
@@ -445,7 +445,8 @@ class DepthImpostors(Technique):
                 particle_of.append(np.arange(base, base + len(p), dtype=np.int32))
             base += len(p)
         self._cloud = ParticleBuffers(np.concatenate(pos), np.concatenate(radius), np.concatenate(sigma),
-                                      np.concatenate(albedo), device, hash_grid=False)
+                                      np.concatenate(albedo), device, hash_grid=False,
+                                      bvh=self.settings["light_pass"] == 0)
         offsets_np = np.concatenate(offsets).astype(np.float64)
         centres = np.concatenate(centres)
         tpl_of = np.concatenate(tpl_of)
