@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import warpvol as wv
-from warpvol.techniques.depth_impostors import split_blocks
+from warpvol.scene.procedural import split_blocks
 
 SUN = {"type": "directional", "direction": [0.5, -0.8, -0.3], "irradiance": 2.0}
 
@@ -163,3 +163,40 @@ def test_a_cloud_grouped_into_blocks_keeps_its_transmittance(device):
     err = [abs(wv.render(scene, "depth_impostors", device=device, cluster=32, impostor_res=t).image.mean() - exact)
            for t in (8, 32)]
     assert err[1] < 0.7 * err[0] and err[1] < 0.012 * exact, (err, exact)
+
+
+def test_moving_instances_keep_the_impostors(device):
+    """An animated block-built cloud whose instances move but whose block does not: the
+    impostors stay cached (the templates stage finds them unchanged), the rest re-runs,
+    and the image equals a fresh render of the moved cloud."""
+    import dataclasses
+
+    scene = wv.load_scene(block_scene(blocks=6, per_block=12))
+    m = scene.media[0]
+    r = wv.Renderer(scene, "depth_impostors", device=device)
+    r.render()
+    shift = np.repeat(np.random.default_rng(1).normal(0.0, 0.1, (6, 3)), 12, axis=0).astype(np.float32)
+    moved = dataclasses.replace(m, positions=np.asarray(m.positions) + shift)
+    r.update(medium=moved)
+    frame = r.render()
+    status = {k: v.status for k, v in frame.stages.items()}
+    assert status["blocks"] == status["templates"] == status["light"] == status["gather"] == "ran"
+    assert status["impostors"] == "cached"
+    fresh = wv.render(dataclasses.replace(scene, media=[moved]), "depth_impostors", device=device).image
+    # the fresh render re-rounds the block's offsets in float32 (1e-7 of its size): nothing else differs
+    np.testing.assert_allclose(frame.image, fresh, rtol=1e-4, atol=1e-6)
+    r.update(medium=dataclasses.replace(m, radius=m.radius * 1.1))  # the block itself changed
+    assert r.render().stages["impostors"].status == "ran"
+
+
+def test_block_size_key_checks_the_positions():
+    """Positions given with block_size must be copies of one block; otherwise the scene is
+    refused with the key named."""
+    pos = wv.load_scene(block_scene(blocks=3, per_block=4)).media[0].positions
+    ok = block_scene(positions=pos)
+    ok["media"][0]["block_size"] = 4
+    assert wv.load_scene(ok).media[0].block_size == 4
+    bad = block_scene(positions=np.asarray(pos) + np.random.default_rng(0).normal(0, 0.01, np.shape(pos)))
+    bad["media"][0]["block_size"] = 4
+    with pytest.raises(wv.SceneError, match="block_size"):
+        wv.load_scene(bad)

@@ -69,7 +69,9 @@ class Stage(NamedTuple):
     scene parts (``PARTS``), ``settings`` the settings it reads, ``after`` the earlier
     stages whose outputs it uses. ``needed=False`` when the scene does not call for it.
     ``settled=False`` makes it run even with unchanged inputs: an iterative solver whose
-    state has not converged yet.
+    state has not converged yet. ``run`` may return False: it ran and found its outputs as
+    they were (say, a block template that an animation moved but did not change), so the
+    stages after it stay cached.
     """
 
     name: str
@@ -223,11 +225,12 @@ class Pipeline:
                 out[stage.name] = StageRun("cached", 0.0)
                 continue
             t0 = time.perf_counter()
-            stage.run()
+            changed = stage.run()
             wp.synchronize_device(device)
             out[stage.name] = StageRun("ran", (time.perf_counter() - t0) * 1000.0)
             keys[stage.name] = key
-            runs[stage.name] += 1
+            if changed is not False:  # False: it ran and found its outputs as they were
+                runs[stage.name] += 1
         return out
 
     def run_stage(self, name: str) -> float:

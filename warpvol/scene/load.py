@@ -310,6 +310,14 @@ def _medium(data, where, source, base_dir) -> Medium:
             g.finish()
         else:
             positions = _points(t, "positions", base_dir, "particle", "a file or a generator")
+            block_size = t.number("block_size", 0, 0, 10_000_000, integer=True)
+            if block_size > 1:
+                from .procedural import split_blocks
+
+                if split_blocks(np.asarray(positions, np.float32).reshape(-1, 3), block_size) is None:
+                    t.fail(t.key("block_size"), f"the {len(positions)} positions are not copies of one block of "
+                           f"{block_size} particles", "block-major copies of one block (see generator kind "
+                           "\"blocks\"), or 0")
         m = ParticleMedium(**common, positions=_array(t, "positions", positions, (3,), "[[x, y, z], ...]"),
                            radius=radius, sigma_t=t.vec3("sigma_t", lo=0.0, scalar_ok=True), block_size=block_size)
     t.finish()

@@ -33,6 +33,21 @@ def block_particles(blocks: int, per_block: int, seed: int = 1, center=(0.0, 0.0
     return (centres[:, None, :] + template[None]).reshape(-1, 3).astype(np.float32)
 
 
+def split_blocks(positions: np.ndarray, block_size: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """(template offsets (b, 3), instance centres (K, 3)) when ``positions`` are K copies of
+    one block of ``block_size`` particles (block-major), else None."""
+    n = len(positions)
+    if block_size <= 1 or n % block_size:
+        return None
+    blocks = positions.reshape(-1, block_size, 3).astype(np.float64)
+    centres = blocks.mean(axis=1)
+    template = blocks[0] - centres[0]
+    scale = max(float(np.abs(positions).max()), 1e-6)
+    if np.abs(blocks - centres[:, None] - template[None]).max() > 1e-5 * scale:
+        return None
+    return template, centres
+
+
 def smoke_density(n: int = 32, seed: int = 3) -> np.ndarray:
     """A (n, n, n) plume: sum of seeded Gaussian puffs rising along y, in [0, 1]."""
     rng = np.random.default_rng(seed)

@@ -17,6 +17,8 @@ one block of b particles, so a frame renders the block once (b) and then its ins
   slices that enclose it. Directional lights get an orthographic pass, point and spot
   lights a perspective one (a cube inside the cloud). ``light_pass = 2``: a Fourier
   opacity map of ``light_terms`` terms instead (Jansen and Bavoil 2010); 0: exact.
+* ``templates``: whether the blocks' templates changed; when an animation only moves the
+  instances, the impostors stay cached.
 * ``impostors`` (reads the camera): each template block's depth impostor for the camera
   direction: T x T texels (``impostor_res``) over the block's bounding disc, per texel the
   total opacity 1 - prod(1 - alpha_j) = 1 - exp(-sum sigma_t chord_j) (RGB; each sphere's
@@ -60,6 +62,7 @@ from ..physics.lights import Light, light_incident
 from ..physics.phase import Phase, phase_eval, phase_struct
 from ..physics.transmittance import transmittance_rgb
 from ..pipeline import Setting, SettingsError, Stage, Technique
+from ..scene.procedural import split_blocks
 from ..upload import SceneUploads, pinhole
 
 NAME = "depth_impostors"
@@ -332,21 +335,6 @@ def morton_groups(positions: np.ndarray, size: int) -> list[np.ndarray]:
     return [order[k:k + size] for k in range(0, len(order), size)]
 
 
-def split_blocks(positions: np.ndarray, block_size: int) -> tuple[np.ndarray, np.ndarray] | None:
-    """(template offsets (b, 3), instance centres (K, 3)) when ``positions`` are K copies of
-    one block of ``block_size`` particles (block-major), else None."""
-    n = len(positions)
-    if block_size <= 1 or n % block_size:
-        return None
-    blocks = positions.reshape(-1, block_size, 3).astype(np.float64)
-    centres = blocks.mean(axis=1)
-    template = blocks[0] - centres[0]
-    scale = max(float(np.abs(positions).max()), 1e-6)
-    if np.abs(blocks - centres[:, None] - template[None]).max() > 1e-5 * scale:
-        return None
-    return template, centres
-
-
 class DepthImpostors(Technique):
     """papers/004: depth impostors of particle blocks, light slices, objects in clouds."""
 
@@ -365,6 +353,7 @@ class DepthImpostors(Technique):
             raise SettingsError(f"{NAME}: the particle media must share one phase function (found {len(phases)})")
         self.uploads = SceneUploads(self, medium=False)
         self._cloud: ParticleBuffers | None = None
+        self._template_key: tuple | None = None  # what the impostors were made from
         self.blocks: Blocks | None = None
         self._reach_t = None  # per template bounding radius (device)
         self._owner = None  # per impostor texel: its template
@@ -388,7 +377,8 @@ class DepthImpostors(Technique):
             Stage("light", self._light, reads=("lights",),
                   settings=("slices", "light_pass", "light_terms", "light_texels", "light_samples"),
                   after=("blocks", "lights")),
-            Stage("impostors", self._impostors, reads=("camera",), after=("blocks",)),
+            Stage("templates", self._templates, after=("blocks",)),
+            Stage("impostors", self._impostors, reads=("camera",), after=("templates",)),
             Stage("shade", self._shade, reads=("camera",), after=("light", "impostors")),
             Stage("surfaces_lit", self._surfaces_lit, reads=("camera",), after=("light", "surfaces"),
                   needed=surfaces),
@@ -485,6 +475,21 @@ class DepthImpostors(Technique):
                                      dtype=int, device=device)
         self.phase, table = phase_struct(self.scene.media[0].phase)
         self.table = wp.array(table if len(table) else np.zeros(1, np.float32), dtype=float, device=device)
+
+    def _templates(self) -> bool:
+        """Whether the templates changed: an animation that only moves the instances leaves the
+        impostors as they are (returns False, so the impostors stage stays cached). Offsets are
+        compared to 1e-6 of the block's size: moving a block in float32 re-rounds them."""
+        B = self.blocks
+        exact = b"".join(a.numpy().tobytes() for a in (B.first, B.count, B.radius, B.sigma_t, B.texel0))
+        exact += np.int64(B.res).tobytes()
+        offsets = B.offsets.numpy().astype(np.float64)
+        old = self._template_key
+        same = (old is not None and old[0] == exact and old[1].shape == offsets.shape
+                and np.allclose(old[1], offsets, rtol=0.0, atol=1e-6 * max(float(np.abs(offsets).max()), 1e-12)))
+        if not same:
+            self._template_key = (exact, offsets)
+        return not same
 
     def _light(self):
         s = self.settings
