@@ -23,13 +23,13 @@ from . import device as dev
 from .geometry.camera import PinholeCamera
 from .geometry.mesh import Surfaces
 from .media.grid import grid_majorant, majorant_grid
-from .media.particles import particle_majorant
+from .media.particles import ParticleBuffers, particle_majorant
 from .media.rbf import CUTOFF, rbf_majorant
 from .media.volume import BOX, GRID, PARTICLES, RBF, SPHERE, Media, sample_extinction
 from .physics.brdf import Material
 from .physics.lights import KINDS, Light
 from .physics.phase import Phase, phase_struct
-from .pipeline import Stage, Technique
+from .pipeline import SettingsError, Stage, Technique
 from .scene import load_scene
 from .scene.model import Camera, GridMedium, HomogeneousMedium, RBFMedium, Scene
 
@@ -64,6 +64,29 @@ def light_array(scene, device) -> wp.array:
         s.cos_outer = math.cos(math.radians(light.outer_angle))
         out.append(s)
     return wp.array(out, dtype=Light, device=device) if out else wp.empty(0, dtype=Light, device=device)
+
+
+def check_particle_scene(technique: str, scene: Scene) -> None:
+    """Raise ``SettingsError`` unless the scene's media are all particle clouds (at least one)
+    sharing one phase function: what the particle techniques render."""
+    bad = [f"media[{k}] of type {m.type}" for k, m in enumerate(scene.media) if m.type != "particles"]
+    if bad or not scene.media:
+        raise SettingsError(f"{technique}: renders particle media only (scene {scene.name!r} has "
+                            f"{', '.join(bad) if bad else 'no media'}; allowed: type = \"particles\")")
+    phases = {(m.phase.type, m.phase.g, None if m.phase.values is None else m.phase.values.tobytes())
+              for m in scene.media}
+    if len(phases) > 1:
+        raise SettingsError(f"{technique}: the particle media must share one phase function (found {len(phases)})")
+
+
+def particle_cloud(scene: Scene, device, **options) -> ParticleBuffers:
+    """All of the scene's particle media as one cloud on the device (per particle: centre,
+    radius, sigma_t, albedo; media in order); ``options`` go to ``ParticleBuffers``."""
+    pos = np.concatenate([np.asarray(m.positions, np.float32).reshape(-1, 3) for m in scene.media])
+    counts = [len(m.positions) for m in scene.media]
+    rep = lambda values: np.repeat(np.asarray(values, np.float32), counts, axis=0)  # noqa: E731
+    return ParticleBuffers(pos, rep([m.radius for m in scene.media]), rep([m.sigma_t for m in scene.media]),
+                           rep([m.albedo for m in scene.media]), device, **options)
 
 
 class SurfaceBuffers:

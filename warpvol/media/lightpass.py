@@ -46,8 +46,8 @@ import warp as wp
 
 from .. import device as dev
 from ..geometry.intersect import ray_sphere
-from ..physics.constants import INF, PI
-from ..physics.lights import DIRECTIONAL, Light, particle_incident
+from ..physics.constants import PI
+from ..physics.lights import DIRECTIONAL, Light, light_incident, particle_incident
 from ..physics.transmittance import sphere_escape, step_integral, transmittance_rgb
 from .particles import ParticleBuffers, Particles, particle_optical_depth
 
@@ -366,15 +366,8 @@ def optical_depth_to_light(m: LightMap, P: Particles, skip: int, l: int, light: 
     none): from the map (a left-out sphere taken out of it exactly as the map holds it), or,
     ``EXACT``, as chord sums along the ray itself."""
     if m.kind == EXACT:
-        w = light.direction
-        dist = float(INF)
-        if light.kind != DIRECTIONAL:
-            to = x - light.position
-            dist = wp.length(to)
-            if dist <= 0.0:
-                return wp.vec3(0.0)
-            w = to / dist
-        return particle_optical_depth(P, skip, x, -w, dist)
+        wi, dist, e = light_incident(light, x)  # at the light itself: dist 0, no depth
+        return particle_optical_depth(P, skip, x, wi, dist)
     if skip < 0:
         return map_optical_depth(m, l, x, x, 0.0, wp.vec3(0.0))
     return map_optical_depth(m, l, x, P.centres[skip], P.radius[skip], P.sigma_t[skip])
@@ -485,7 +478,7 @@ class LightPass:
         m.kind = kind
         n = cloud.struct.centres.shape[0]
         infos = lights.numpy() if lights.shape[0] else []
-        radius = cloud.struct.radius.numpy() if n else np.ones(1, np.float32)
+        radius = cloud.radius if n else np.ones(1, np.float32)
         C = self.slices + 1 if kind == SLICES else 2 * self.terms + 1
         M = self.texels or int(np.clip(np.ceil(4.0 * cloud.R / max(float(np.median(radius)), 1e-9)), MIN_TEXELS,
                                             MAX_TEXELS))

@@ -94,7 +94,7 @@ class ParticleBuffers:
     """Owns the device arrays and hash grid behind a ``Particles`` struct.
 
     Parameters: ``centres`` (N, 3), ``radius`` (N,), ``sigma_t`` and ``albedo`` (N, 3),
-    float32 arrays in scene units. ``centre`` and ``R`` are the cloud's bounding ball (the
+    float32 arrays in scene units (kept as host copies under the same names). ``centre`` and ``R`` are the cloud's bounding ball (the
     centres' box centre; the farthest sphere's reach), R = 1 for an empty cloud.
     ``hash_grid`` / ``bvh`` = False skip building those (a user that never looks a point or a
     ray up saves the build).
@@ -103,6 +103,10 @@ class ParticleBuffers:
     def __init__(self, centres: np.ndarray, radius: np.ndarray, sigma_t: np.ndarray, albedo: np.ndarray, device,
                  hash_grid: bool = True, bvh: bool = True):
         centres = np.asarray(centres, np.float32).reshape(-1, 3)
+        radius = np.asarray(radius, np.float32).reshape(-1)
+        sigma_t = np.asarray(sigma_t, np.float32).reshape(-1, 3)
+        albedo = np.asarray(albedo, np.float32).reshape(-1, 3)
+        self.centres, self.radius, self.sigma_t, self.albedo = centres, radius, sigma_t, albedo  # host copies
         n = len(centres)
         lo, hi = (centres.min(0), centres.max(0)) if n else (np.zeros(3), np.zeros(3))
         self.centre = 0.5 * (lo + hi)
@@ -110,14 +114,14 @@ class ParticleBuffers:
         self.R = float(np.sqrt(((centres - self.centre) ** 2).sum(1)).max()) + r_max if n else 1.0
         s = Particles()
         s.centres = wp.array(centres, dtype=wp.vec3, device=device)
-        s.radius = wp.array(np.asarray(radius, np.float32), dtype=float, device=device)
-        s.sigma_t = wp.array(np.asarray(sigma_t, np.float32).reshape(-1, 3), dtype=wp.vec3, device=device)
-        s.albedo = wp.array(np.asarray(albedo, np.float32).reshape(-1, 3), dtype=wp.vec3, device=device)
+        s.radius = wp.array(radius, dtype=float, device=device)
+        s.sigma_t = wp.array(sigma_t, dtype=wp.vec3, device=device)
+        s.albedo = wp.array(albedo, dtype=wp.vec3, device=device)
         s.r_max = r_max
         self.hash_grid = self.bvh = None
         s.grid = s.bvh = wp.uint64(0)
         if n and bvh:
-            reach = np.asarray(radius, np.float32).reshape(-1, 1)
+            reach = radius.reshape(-1, 1)
             self.bvh = wp.Bvh(wp.array(centres - reach, dtype=wp.vec3, device=device),
                               wp.array(centres + reach, dtype=wp.vec3, device=device))
             s.bvh = self.bvh.id

@@ -103,6 +103,14 @@ def phase_eval(ph: Phase, table: wp.array(dtype=float), cos_theta: float) -> flo
 
 
 @wp.func
+def phase_toward(ph: Phase, table: wp.array(dtype=float), w_in: wp.vec3, w_out: wp.vec3) -> float:
+    """p(w_in . w_out); isotropic for light that arrives from every side (w_in = 0)."""
+    if wp.length_sq(w_in) == 0.0:
+        return INV_4PI
+    return phase_eval(ph, table, wp.dot(w_in, w_out))
+
+
+@wp.func
 def sample_hg_cos(g: float, u: float) -> float:
     """Inverse CDF of the HG distribution of cos_theta (forward for g > 0)."""
     if wp.abs(g) < 1.0e-3:

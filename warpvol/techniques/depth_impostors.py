@@ -57,13 +57,13 @@ from ..geometry.raster import RasterView, TileLists, bin_spheres, pixel_ray, pix
 from ..media.lightpass import REPRESENTATIONS, LightMap, LightPass, optical_depth_to_light
 from ..media.particles import ParticleBuffers, Particles
 from ..physics.brdf import brdf_eval
-from ..physics.constants import INF, INV_4PI, RAY_EPS
+from ..physics.constants import INF, RAY_EPS
 from ..physics.lights import Light, light_incident
-from ..physics.phase import Phase, phase_eval, phase_struct
+from ..physics.phase import Phase, phase_eval, phase_struct, phase_toward
 from ..physics.transmittance import transmittance_rgb
-from ..pipeline import Setting, SettingsError, Stage, Technique
+from ..pipeline import Setting, Stage, Technique
 from ..scene.procedural import split_blocks
-from ..upload import SceneUploads, pinhole
+from ..upload import SceneUploads, check_particle_scene, particle_cloud, pinhole
 
 NAME = "depth_impostors"
 SETTINGS = {
@@ -108,10 +108,16 @@ class Impostors:
     up: wp.vec3
 
 
+@wp.func
+def texel_uv(k: int, T: int, R: float):
+    """(u, v) of texel k of a T x T impostor over a disc of radius R, from its centre."""
+    u = ((float(k % T) + 0.5) / float(T) * 2.0 - 1.0) * R
+    v = ((float(k / T) + 0.5) / float(T) * 2.0 - 1.0) * R
+    return u, v
+
+
 @wp.kernel
-def make_impostors(offset: int, B: Blocks, reach: wp.array(dtype=float), imp: Impostors,
-                   alpha: wp.array(dtype=wp.vec3), front: wp.array(dtype=float), back: wp.array(dtype=float),
-                   mid: wp.array(dtype=float), owner: wp.array(dtype=int)):
+def make_impostors(offset: int, B: Blocks, reach: wp.array(dtype=float), imp: Impostors, owner: wp.array(dtype=int)):
     """Thread per texel of a template's impostor: the total opacity of the block's spheres
     along the texel's ray (direction imp.fwd), the nearest entry and farthest exit, and the
     depth the texel is shaded at: the chords' own emission-weighted depths (the mean depth
@@ -121,10 +127,8 @@ def make_impostors(offset: int, B: Blocks, reach: wp.array(dtype=float), imp: Im
     tid = wp.tid() + offset
     t = owner[tid]
     k = tid - B.texel0[t]
-    T = B.res
     R = reach[t]
-    u = ((float(k % T) + 0.5) / float(T) * 2.0 - 1.0) * R
-    v = ((float(k / T) + 0.5) / float(T) * 2.0 - 1.0) * R
+    u, v = texel_uv(k, B.res, R)
     o = u * imp.right + v * imp.up - R * imp.fwd
     r = B.radius[t]
     sig = (B.sigma_t[t][0] + B.sigma_t[t][1] + B.sigma_t[t][2]) / 3.0
@@ -154,10 +158,10 @@ def make_impostors(offset: int, B: Blocks, reach: wp.array(dtype=float), imp: Im
                 g = 1.0 / tj - wp.exp(-tj) / (1.0 - wp.exp(-tj))
             wsum += w
             dsum += w * (a + (b - a) * g - R)
-    alpha[tid] = wp.vec3(1.0) - transmittance_rgb(B.sigma_t[t] * tau)
-    front[tid] = lo
-    back[tid] = hi
-    mid[tid] = wp.where(wsum > 0.0, dsum / wp.max(wsum, 1.0e-30), 0.5 * (lo + hi))
+    imp.alpha[tid] = wp.vec3(1.0) - transmittance_rgb(B.sigma_t[t] * tau)
+    imp.front[tid] = lo
+    imp.back[tid] = hi
+    imp.mid[tid] = wp.where(wsum > 0.0, dsum / wp.max(wsum, 1.0e-30), 0.5 * (lo + hi))
 
 
 @wp.func
@@ -188,10 +192,7 @@ def shade_texels(offset: int, B: Blocks, imp: Impostors, m: LightMap, P: Particl
     texel = B.texel0[t] + k
     L = wp.vec3(0.0)
     if imp.alpha[texel][0] > 0.0 or imp.alpha[texel][1] > 0.0 or imp.alpha[texel][2] > 0.0:
-        T = B.res
-        R = B.reach[i]
-        u = ((float(k % T) + 0.5) / float(T) * 2.0 - 1.0) * R
-        v = ((float(k / T) + 0.5) / float(T) * 2.0 - 1.0) * R
+        u, v = texel_uv(k, B.res, B.reach[i])
         x = B.centre[i] + u * imp.right + v * imp.up + imp.mid[texel] * imp.fwd
         L = wp.cw_mul(B.albedo[t], in_scatter(m, P, lights, ph, table, x, wp.normalize(eye - x)))
     radiance[first[j] + k] = L
@@ -207,11 +208,7 @@ def shade_particles(offset: int, B: Blocks, direct: wp.array(dtype=wp.vec3), tra
     w = wp.normalize(eye - B.centre[i])
     acc = wp.vec3(0.0)
     for l in range(L):
-        tr = travel[p * L + l]
-        c = float(INV_4PI)
-        if wp.length_sq(tr) > 0.0:
-            c = phase_eval(ph, table, wp.dot(tr, w))
-        acc += c * direct[p * L + l]
+        acc += phase_toward(ph, table, travel[p * L + l], w) * direct[p * L + l]
     out[i] = wp.cw_mul(B.albedo[B.tpl[i]], acc)
 
 
@@ -343,14 +340,7 @@ class DepthImpostors(Technique):
 
     def __init__(self, scene, device, settings, progress=False):
         super().__init__(scene, device, settings, progress)
-        bad = [f"media[{k}] of type {m.type}" for k, m in enumerate(scene.media) if m.type != "particles"]
-        if bad or not scene.media:
-            raise SettingsError(f"{NAME}: renders particle media only (scene {scene.name!r} has "
-                                f"{', '.join(bad) if bad else 'no media'}; allowed: type = \"particles\")")
-        phases = {(m.phase.type, m.phase.g, None if m.phase.values is None else m.phase.values.tobytes())
-                  for m in scene.media}
-        if len(phases) > 1:
-            raise SettingsError(f"{NAME}: the particle media must share one phase function (found {len(phases)})")
+        check_particle_scene(NAME, scene)
         self.uploads = SceneUploads(self, medium=False)
         self._cloud: ParticleBuffers | None = None
         self._template_key: tuple | None = None  # what the impostors were made from
@@ -390,7 +380,6 @@ class DepthImpostors(Technique):
 
     def _blocks(self):
         device, T = self.device, self.settings["impostor_res"]
-        pos, radius, sigma, albedo = [], [], [], []
         centres, tpl_of, offsets, first, count, t_radius, t_sigma, t_albedo, texel0, particle_of = ([] for _ in range(10))
         texels = 0
 
@@ -409,10 +398,6 @@ class DepthImpostors(Technique):
         base = 0
         for m in self.scene.media:
             p = np.asarray(m.positions, np.float32).reshape(-1, 3)
-            pos.append(p)
-            radius.append(np.full(len(p), m.radius, np.float32))
-            sigma.append(np.tile(np.asarray(m.sigma_t, np.float32), (len(p), 1)))
-            albedo.append(np.tile(np.asarray(m.albedo, np.float32), (len(p), 1)))
             split = split_blocks(p, int(getattr(m, "block_size", 0)))
             if split is not None:  # K copies of one block
                 offs, inst = split
@@ -434,9 +419,7 @@ class DepthImpostors(Technique):
                 tpl_of.append(np.full(len(p), t, np.int32))
                 particle_of.append(np.arange(base, base + len(p), dtype=np.int32))
             base += len(p)
-        self._cloud = ParticleBuffers(np.concatenate(pos), np.concatenate(radius), np.concatenate(sigma),
-                                      np.concatenate(albedo), device, hash_grid=False,
-                                      bvh=self.settings["light_pass"] == 0)
+        self._cloud = particle_cloud(self.scene, device, hash_grid=False, bvh=self.settings["light_pass"] == 0)
         offsets_np = np.concatenate(offsets).astype(np.float64)
         centres = np.concatenate(centres)
         tpl_of = np.concatenate(tpl_of)
@@ -498,22 +481,16 @@ class DepthImpostors(Technique):
         self.light_pass.build(self._cloud, self.uploads.lights, s["light_samples"])
 
     def _impostors(self):
-        cam = self.scene.camera
-        fwd = np.asarray(cam.target, np.float64) - np.asarray(cam.origin, np.float64)
-        fwd /= np.linalg.norm(fwd)
-        right = np.cross(fwd, np.asarray(cam.up, np.float64))
-        right /= np.linalg.norm(right)
-        up = np.cross(right, fwd)
+        pc = pinhole(self.scene.camera)  # the camera's frame, right and up scaled by the field of view
         imp = Impostors()
-        imp.fwd, imp.right, imp.up = wp.vec3(*fwd), wp.vec3(*right), wp.vec3(*up)
+        imp.fwd, imp.right, imp.up = pc.forward, wp.normalize(pc.right), wp.normalize(pc.up)
         n = max(self.texels, 1)
         imp.alpha = wp.zeros(n, dtype=wp.vec3, device=self.device)
         imp.front = wp.zeros(n, dtype=float, device=self.device)
         imp.back = wp.zeros(n, dtype=float, device=self.device)
         imp.mid = wp.zeros(n, dtype=float, device=self.device)
         if self.texels:
-            dev.launch(make_impostors, self.texels, [self.blocks, self._reach_t, imp, imp.alpha, imp.front, imp.back,
-                                                     imp.mid, self._owner], self.device)
+            dev.launch(make_impostors, self.texels, [self.blocks, self._reach_t, imp, self._owner], self.device)
         self.impostors = imp
 
     def _shade(self):

@@ -90,11 +90,11 @@ from ..media.lightpass import REPRESENTATIONS, LightPass
 from ..media.particles import ParticleBuffers, Particles, particle_sigma_t
 from ..physics.constants import INV_4PI, PI
 from ..physics.lights import DIRECTIONAL, Light
-from ..physics.phase import Phase, orthonormal_basis, phase_eval, phase_struct
+from ..physics.phase import Phase, orthonormal_basis, phase_eval, phase_struct, phase_toward
 from ..physics.sphere import fibonacci_directions
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Setting, SettingsError, Stage, Technique
-from ..upload import SceneUploads, pinhole
+from ..upload import SceneUploads, check_particle_scene, particle_cloud, pinhole
 
 NAME = "illumination_network"
 SETTINGS = {
@@ -193,14 +193,6 @@ def link_network(offset: int, keys: wp.array(dtype=wp.int64), values: wp.array(d
     if vp >= 0:
         dist = wp.max(wp.dot(pos[p] - pos[vp], dirs[i]), 0.0)
         alpha[vp * D + i] = wp.vec3(1.0) - transmittance_rgb(tau[vp] * dist)
-
-
-@wp.func
-def phase_toward(ph: Phase, table: wp.array(dtype=float), w_in: wp.vec3, w_out: wp.vec3) -> float:
-    """p(w_in . w_out); isotropic for light that arrives from every side (w_in = 0)."""
-    if wp.length_sq(w_in) == 0.0:
-        return INV_4PI
-    return phase_eval(ph, table, wp.dot(w_in, w_out))
 
 
 @wp.kernel
@@ -478,17 +470,10 @@ class IlluminationNetwork(Technique):
 
     def __init__(self, scene, device, settings, progress=False):
         super().__init__(scene, device, settings, progress)
-        bad = [f"media[{k}] of type {m.type}" for k, m in enumerate(scene.media) if m.type != "particles"]
-        if bad or not scene.media:
-            raise SettingsError(f"{NAME}: renders particle media only (scene {scene.name!r} has "
-                                f"{', '.join(bad) if bad else 'no media'}; allowed: type = \"particles\")")
+        check_particle_scene(NAME, scene)
         if scene.surfaces:
             raise SettingsError(f"{NAME}: renders particle clouds under lights and sky; scene {scene.name!r} has "
                                 f"{len(scene.surfaces)} surfaces (allowed: none)")
-        phases = {(m.phase.type, m.phase.g, None if m.phase.values is None else m.phase.values.tobytes())
-                  for m in scene.media}
-        if len(phases) > 1:
-            raise SettingsError(f"{NAME}: the particle media must share one phase function (found {len(phases)})")
         self.uploads = SceneUploads(self, medium=False)
         # network stage: the cloud, its layout and the visibility network
         self._layout: tuple | None = None  # (N, D, window, half, phase_norm) the network was built for
@@ -538,12 +523,8 @@ class IlluminationNetwork(Technique):
         """Particles to the device, per-particle extinction, phase matrix, and V with alpha:
         every direction, or with ``refresh = k`` and an unchanged layout the next k."""
         s, device = self.settings, self.device
-        pos = np.concatenate([np.asarray(m.positions, np.float32).reshape(-1, 3) for m in self.scene.media])
-        counts = [len(m.positions) for m in self.scene.media]
-        rep = lambda values: np.repeat(np.asarray(values, np.float32), counts, axis=0)
-        radius = rep([m.radius for m in self.scene.media])
-        sigma = rep([m.sigma_t for m in self.scene.media])
-        albedo = rep([m.albedo for m in self.scene.media])
+        self._particles = cloud = particle_cloud(self.scene, device)
+        pos, radius, sigma = cloud.centres, cloud.radius, cloud.sigma_t
         n = len(pos)
         D = s["directions"]
         layout = (n, D, s["window"], s["half"], s["phase_norm"])
@@ -552,7 +533,6 @@ class IlluminationNetwork(Technique):
         self._n = n
         self.D, self.Dp = D, _pad(D, 16)
         self.rows = _pad(3 * max(n, 1), ROWS)
-        self._particles = ParticleBuffers(pos, radius, sigma, albedo, device)
         self.particles = P = self._particles.struct
         self.centre, self.R = self._particles.centre, self._particles.R
         if partial:  # the paper's future work: re-peel k directions a frame, round robin
