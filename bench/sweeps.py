@@ -752,12 +752,17 @@ def _impostor_accuracy_grid(quick: bool) -> list[dict]:
     return ([{"light": "slices", "terms": s, "res": 16} for s in (1, 2, 4, 8, 16, 32)]
             + [{"light": "slices", "terms": 4, "res": r} for r in (4, 8, 32, 64)]
             + [{"light": "fourier", "terms": k, "res": 16} for k in (2, 4, 8, 16)]
-            + [{"light": "exact", "terms": 0, "res": r} for r in (16, 64)])
+            + [{"light": "exact", "terms": 0, "res": r} for r in (16, 64)]
+            + [{"light": "slices", "terms": 4, "res": 16, "sky": k} for k in (0, 1, 4, 16, 64)]
+            + [{"light": "slices", "terms": 4, "res": 16, "widen": w} for w in (0.5, 1.0, 2.0, 4.0)])
 
 
 def _impostor_settings(params: dict) -> dict:
     kind = {"exact": 0, "slices": 1, "fourier": 2}[params["light"]]
     out = {"light_pass": kind, "impostor_res": params["res"]}
+    for key, setting in (("sky", "sky_samples"), ("widen", "widen")):
+        if key in params:
+            out[setting] = params[key]
     if kind == 1:
         out["slices"] = params["terms"]
     elif kind == 2:
@@ -779,6 +784,7 @@ def _impostor_accuracy(params: dict, device: str, quick: bool) -> dict:
     image = row["frame"].image
     row["rel_rmse"] = wv.relative_rmse(image, ref)
     row["rel_rmse_corrected"] = max(row["rel_rmse"] ** 2 - floor**2, 0.0) ** 0.5
+    row["rel_rmse_multiple"] = wv.relative_rmse(image, ms)
     row["mean_ratio"] = float(image.mean() / ref.mean())
     row["single_of_multiple"] = float(ref.mean() / ms.mean())
     row["reference"] = {"spp": 2 * spp, "max_bounces": 1, "pixel_area": 0, "rel_rmse_floor": floor}
@@ -953,7 +959,8 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
           "(1..1000 particles a block): where the fastest block size lies as N grows",
           "depth_impostors", "paper", _impostor_sweep_grid, _impostor_frame, issue=15),
     Sweep("depth-impostors-accuracy", "depth_impostors against the single-scattering reference: light-pass slices "
-          "S = 1..32, impostor resolution 4..64, Fourier terms K = 2..16 and the exact light",
+          "S = 1..32, impostor resolution 4..64, Fourier terms K = 2..16, the exact light, sky directions 0..64 and the "
+          "forward-scattering widening 0.5..4 radii (also against the multiple-scattering reference)",
           "depth_impostors", "accuracy", _impostor_accuracy_grid, _impostor_accuracy, issue=15),
     Sweep("depth-impostors-objects", "objects in clouds (papers/004 section 2.4): a plane through the cloud, depth "
           "impostors against billboards, both against the single-scattering reference",

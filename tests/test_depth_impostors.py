@@ -200,3 +200,56 @@ def test_block_size_key_checks_the_positions():
     bad["media"][0]["block_size"] = 4
     with pytest.raises(wv.SceneError, match="block_size"):
         wv.load_scene(bad)
+
+
+def test_sky_light_of_a_thin_cloud_is_albedo_times_sky(device):
+    """No lights, a grey sky L: an optically thin cloud (sigma_t r = 8e-4, so the sky's light
+    reaches every point through optical depth < 0.01) scatters albedo L T toward the eye with
+    T in [e^-0.01, 1], for a block's texels and for one-particle instances alike. The sky's
+    7 directions (an odd count, so not symmetric) weight the phase function unevenly; only
+    the division by sum p_k makes the result L (a plain 4 pi / K quadrature of HG g = 0.3
+    is off by several per cent)."""
+    L, albedo = 0.2, 0.9
+    for settings in ({"cluster": 1}, {"cluster": 9}):
+        scene = block_scene(blocks=1, per_block=9, lights=(), sigma_t=0.01, background=L,
+                            positions=np.random.default_rng(1).uniform(-0.3, 0.3, (9, 3)))
+        r = wv.Renderer(scene, "depth_impostors", device=device, sky_samples=7, **settings)
+        r.render()
+        t = r.technique
+        if settings["cluster"] == 1:
+            rad = t.particle_radiance.numpy()[: t.n_instances, 0]
+        else:
+            alpha = t.impostors.alpha.numpy()[:, 0]
+            rad = t.texel_radiance.numpy()[: len(alpha), 0][alpha > 0]
+        assert len(rad) and np.all(rad <= albedo * L * (1 + 1e-5)) and np.all(rad >= albedo * L * np.exp(-0.01))
+
+
+def test_sky_lights_an_open_diffuse_floor_to_albedo_times_sky(device):
+    """A diffuse floor (albedo 0.5) under a grey sky L, the cloud a thin particle far to the
+    side: every pixel sees the floor at pi (0.5 / pi) L = 0.5 L, whatever the sky's
+    directions (sum cos_k T_k / sum cos_k with T = 1); and the floor, off the light pass's
+    face, reads no shadow from it."""
+    L = 0.2
+    floor = {"type": "plane", "center": [0, -1, 0], "normal": [0, 1, 0], "size": [40, 40], "diffuse": 0.5}
+    scene = block_scene(lights=(), surfaces=(floor,), sigma_t=0.01, background=L, origin=(0.0, 3.0, 0.01),
+                        positions=[[6.0, -0.5, 0.0]])
+    for k in (5, 16):
+        image = wv.Renderer(scene, "depth_impostors", device=device, sky_samples=k).render().image
+        np.testing.assert_allclose(image, 0.5 * L, rtol=1e-4)
+
+
+def test_widening_averages_the_light_with_an_unshadowed_ring(device):
+    """Forward-scattering widening, isotropic phase: with a ring wider than the cloud every
+    ring point sees the light unshadowed, so a texel's light becomes (T_0 + 6) / 7 of the
+    unwidened T_0: radiance_w = (radiance_0 + 6 a E / (4 pi)) / 7, texel by texel."""
+    scene = block_scene(blocks=1, per_block=9, sigma_t=20.0, background=0.0)
+    scene["media"][0]["phase"] = {"type": "isotropic"}
+    out = {}
+    for widen in (0.0, 16.0):
+        r = wv.Renderer(scene, "depth_impostors", device=device, widen=widen)
+        r.render()
+        alpha = r.technique.impostors.alpha.numpy()[:, 0]
+        out[widen] = r.technique.texel_radiance.numpy()[: len(alpha)][alpha > 0]
+    unshadowed = 0.9 * 2.0 / (4 * np.pi)
+    assert out[0.0].min() < 0.5 * unshadowed  # the block shadows itself: the test sees the ring
+    np.testing.assert_allclose(out[16.0], (out[0.0] + 6 * unshadowed) / 7, rtol=1e-4, atol=1e-7)

@@ -66,6 +66,31 @@ def light_array(scene, device) -> wp.array:
     return wp.array(out, dtype=Light, device=device) if out else wp.empty(0, dtype=Light, device=device)
 
 
+def sky_lights(background, count: int, device) -> wp.array:
+    """A constant sky of radiance ``background`` as ``count`` directional lights from a
+    Fibonacci set of directions over the whole sphere (near-uniform, deterministic), each of
+    strength ``background``: a technique sums p_k E_k T_k over them and divides by sum p_k
+    (or by sum cos_k at a surface), which is exact for an unoccluded point. None when the sky
+    is black or ``count`` is 0."""
+    sky = np.asarray(background, np.float64)
+    if count <= 0 or not np.any(sky > 0.0):
+        return None
+    k = np.arange(count) + 0.5
+    z = 1.0 - 2.0 * k / count
+    phi = np.pi * (3.0 - np.sqrt(5.0)) * k
+    s = np.sqrt(np.maximum(1.0 - z * z, 0.0))
+    out = []
+    for w in np.stack([s * np.cos(phi), z, s * np.sin(phi)], axis=1):  # w: toward the sky
+        light = Light()
+        light.kind = KINDS["directional"]
+        light.position = wp.vec3(0.0)
+        light.direction = wp.vec3(*(-w))
+        light.strength = wp.vec3(*sky)
+        light.cos_inner = light.cos_outer = 1.0
+        out.append(light)
+    return wp.array(out, dtype=Light, device=device)
+
+
 def check_particle_scene(technique: str, scene: Scene) -> None:
     """Raise ``SettingsError`` unless the scene's media are all particle clouds (at least one)
     sharing one phase function: what the particle techniques render."""

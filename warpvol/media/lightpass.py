@@ -307,6 +307,8 @@ def map_optical_depth(m: LightMap, light: int, x: wp.vec3, own_c: wp.vec3, own_r
     the sphere (own_c, own_r, own_sigma) along the same texel rays (own_r = 0: none)."""
     f = m.faces[light_face(m, light, x)]
     uvt = face_coords(f, x)
+    if wp.abs(uvt[0]) > 1.0 or wp.abs(uvt[1]) > 1.0:  # off the face, which covers the cloud: nothing in the way
+        return wp.vec3(0.0)
     M = m.M
     z = wp.clamp((uvt[2] - f.near) / (f.far - f.near), 0.0, 1.0)
     fx = wp.clamp((uvt[0] + 1.0) * 0.5 * float(M) - 0.5, 0.0, float(M - 1))

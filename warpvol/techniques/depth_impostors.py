@@ -16,7 +16,10 @@ one block of b particles, so a frame renders the block once (b) and then its ins
   RGBA texture; here ``slices``), read at any point by interpolating between the two
   slices that enclose it. Directional lights get an orthographic pass, point and spot
   lights a perspective one (a cube inside the cloud). ``light_pass = 2``: a Fourier
-  opacity map of ``light_terms`` terms instead (Jansen and Bavoil 2010); 0: exact.
+  opacity map of ``light_terms`` terms instead (Jansen and Bavoil 2010); 0: exact. The sky
+  (the scene's background, the paper's "sky color" in figure 2) is light too: from
+  ``sky_samples`` directions over the sphere (``upload.sky_lights``), each with its own
+  light pass on a quarter of the sun's texels (sky light is soft); not built for a black sky.
 * ``templates``: whether the blocks' templates changed; when an animation only moves the
   instances, the impostors stay cached.
 * ``impostors`` (reads the camera): each template block's depth impostor for the camera
@@ -29,7 +32,8 @@ one block of b particles, so a frame renders the block once (b) and then its ins
 * ``shade`` (reads the camera): what each instance's texel scatters toward the camera:
   albedo x sum over lights of p(theta) E T_light, T_light read from the light pass at the
   texel's shading depth (the block's own particles toward the light included: its
-  self-shadowing). A one-particle instance: its irradiance averaged over the sphere at
+  self-shadowing), plus the sky's albedo L_sky sum_k p_k T_k / sum_k p_k. ``widen`` > 0: the
+  paper's forward-scattering widening (``light_transmittance``). A one-particle instance: its irradiance averaged over the sphere at
   ``light_samples`` points (``LightPass.direct``).
 * ``surfaces`` (reads the surfaces, camera): per pixel the nearest surface (its depth: the
   paper's depth buffer) and its colour lit through the light pass (the cloud's shadow) and
@@ -57,13 +61,13 @@ from ..geometry.raster import RasterView, TileLists, bin_spheres, pixel_ray, pix
 from ..media.lightpass import REPRESENTATIONS, LightMap, LightPass, optical_depth_to_light
 from ..media.particles import ParticleBuffers, Particles
 from ..physics.brdf import brdf_eval
-from ..physics.constants import INF, RAY_EPS
+from ..physics.constants import INF, PI, RAY_EPS
 from ..physics.lights import Light, light_incident
 from ..physics.phase import Phase, phase_eval, phase_struct, phase_toward
 from ..physics.transmittance import transmittance_rgb
 from ..pipeline import Setting, Stage, Technique
 from ..scene.procedural import split_blocks
-from ..upload import SceneUploads, check_particle_scene, particle_cloud, pinhole
+from ..upload import SceneUploads, check_particle_scene, particle_cloud, pinhole, sky_lights
 
 NAME = "depth_impostors"
 SETTINGS = {
@@ -75,6 +79,11 @@ SETTINGS = {
     "light_terms": Setting(8, 1, 256, "Fourier terms K (light_pass = 2)"),
     "light_texels": Setting(0, 0, 1024, "light-pass texels per face side; 0: 4 R / r (half a median radius)"),
     "light_samples": Setting(4, 1, 1024, "points of a one-particle instance whose light is averaged"),
+    "sky_samples": Setting(8, 0, 256, "directions the sky's light (the scene's background) is gathered from, each "
+                                       "through its own coarse light pass; 0: no sky light"),
+    "widen": Setting(0.0, 0.0, 16.0, "forward-scattering widening (section 2.2): the light at a texel averaged with a "
+                                     "ring this many median particle radii across, weighted by the phase function; "
+                                     "0: off"),
     "object_depth": Setting(1, 0, 1, "1: depth impostors (a block's opacity cut where a surface lies inside its "
                                      "depth interval); 0: billboards (a block at its centre plane, as the paper fixes)"),
 }
@@ -165,24 +174,57 @@ def make_impostors(offset: int, B: Blocks, reach: wp.array(dtype=float), imp: Im
 
 
 @wp.func
+def light_transmittance(m: LightMap, P: Particles, l: int, light: Light, x: wp.vec3, wi: wp.vec3, widen: float,
+                        ph: Phase, table: wp.array(dtype=float)) -> wp.vec3:
+    """Transmittance from light l to x; ``widen`` > 0: the paper's forward-scattering widening
+    (section 2.2: "the radiance of those pixels of both enclosing slices are taken into
+    account, for which the phase function is not negligible"), read as the light at x plus
+    the light at six points a distance ``widen`` across the light's ray and as far upstream
+    (toward the light), each weighted by the phase function for scattering from there to x
+    (the centre by p(0 degrees), the ring by p(45 degrees)), normalised: a shadow's edge
+    blurs more the flatter the phase function."""
+    tr = transmittance_rgb(optical_depth_to_light(m, P, -1, l, light, x))
+    if widen <= 0.0:
+        return tr
+    w0 = phase_eval(ph, table, 1.0)
+    w1 = phase_eval(ph, table, 0.7071068)
+    a = wp.where(wp.abs(wi[0]) < 0.9, wp.vec3(1.0, 0.0, 0.0), wp.vec3(0.0, 1.0, 0.0))
+    e1 = wp.normalize(wp.cross(wi, a))
+    e2 = wp.cross(wi, e1)
+    acc = w0 * tr
+    for k in range(6):
+        ang = float(k) * 1.0471976
+        y = x + widen * (wp.cos(ang) * e1 + wp.sin(ang) * e2 + wi)
+        acc += w1 * transmittance_rgb(optical_depth_to_light(m, P, -1, l, light, y))
+    return acc / (w0 + 6.0 * w1)
+
+
+@wp.func
 def in_scatter(m: LightMap, P: Particles, lights: wp.array(dtype=Light), ph: Phase, table: wp.array(dtype=float),
-               x: wp.vec3, w_out: wp.vec3) -> wp.vec3:
-    """Light scattered at x toward w_out per unit albedo: sum_l p E_l T_l(x)."""
+               x: wp.vec3, w_out: wp.vec3, widen: float, sky: int) -> wp.vec3:
+    """Light scattered at x toward w_out per unit albedo: sum_l p E_l T_l(x). ``sky`` = 1:
+    the lights are a sky's directions (``upload.sky_lights``), and the sum is divided by
+    sum_l p, the quadrature of int p L_sky T dw (exact where nothing shadows x)."""
     L = wp.vec3(0.0)
+    psum = float(0.0)
     for l in range(lights.shape[0]):
         wi, dist, e = light_incident(lights[l], x)
+        p = phase_eval(ph, table, wp.dot(-wi, w_out))
+        psum += p
         if e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0:
-            tr = transmittance_rgb(optical_depth_to_light(m, P, -1, l, lights[l], x))
-            L += phase_eval(ph, table, wp.dot(-wi, w_out)) * wp.cw_mul(e, tr)
+            L += p * wp.cw_mul(e, light_transmittance(m, P, l, lights[l], x, wi, widen, ph, table))
+    if sky != 0 and psum > 0.0:
+        L = L / psum
     return L
 
 
 @wp.kernel
 def shade_texels(offset: int, B: Blocks, imp: Impostors, m: LightMap, P: Particles, lights: wp.array(dtype=Light),
-                 ph: Phase, table: wp.array(dtype=float), eye: wp.vec3, inst: wp.array(dtype=int),
-                 first: wp.array(dtype=int), radiance: wp.array(dtype=wp.vec3)):
+                 m_sky: LightMap, sky: wp.array(dtype=Light), ph: Phase, table: wp.array(dtype=float), eye: wp.vec3,
+                 widen: float, inst: wp.array(dtype=int), first: wp.array(dtype=int),
+                 radiance: wp.array(dtype=wp.vec3)):
     """Thread (textured instance j, texel k): what the texel's segment scatters toward the
-    eye, per unit opacity: albedo sum_l p E_l T_l at its mid-depth point."""
+    eye, per unit opacity: albedo (sum_l p E_l T_l + the sky's) at its mid-depth point."""
     tid = wp.tid() + offset
     T2 = B.res * B.res
     j = tid / T2
@@ -194,29 +236,42 @@ def shade_texels(offset: int, B: Blocks, imp: Impostors, m: LightMap, P: Particl
     if imp.alpha[texel][0] > 0.0 or imp.alpha[texel][1] > 0.0 or imp.alpha[texel][2] > 0.0:
         u, v = texel_uv(k, B.res, B.reach[i])
         x = B.centre[i] + u * imp.right + v * imp.up + imp.mid[texel] * imp.fwd
-        L = wp.cw_mul(B.albedo[t], in_scatter(m, P, lights, ph, table, x, wp.normalize(eye - x)))
+        w = wp.normalize(eye - x)
+        L = in_scatter(m, P, lights, ph, table, x, w, widen, 0)
+        if sky.shape[0] > 0:
+            L += in_scatter(m_sky, P, sky, ph, table, x, w, 0.0, 1)
+        L = wp.cw_mul(B.albedo[t], L)
     radiance[first[j] + k] = L
 
 
 @wp.kernel
 def shade_particles(offset: int, B: Blocks, direct: wp.array(dtype=wp.vec3), travel: wp.array(dtype=wp.vec3),
                     L: int, particle: wp.array(dtype=int), ph: Phase, table: wp.array(dtype=float), eye: wp.vec3,
-                    out: wp.array(dtype=wp.vec3)):
-    """One-particle instance i: albedo sum_l p(travel_l . w_eye) E_l T_l (sphere means)."""
+                    sky: int, out: wp.array(dtype=wp.vec3)):
+    """One-particle instance i: adds albedo sum_l p(travel_l . w_eye) E_l T_l (sphere means);
+    ``sky`` = 1: the lights are a sky's directions, the sum divided by sum_l p."""
     i = wp.tid() + offset
     p = particle[i]
     w = wp.normalize(eye - B.centre[i])
     acc = wp.vec3(0.0)
+    psum = float(0.0)
     for l in range(L):
-        acc += phase_toward(ph, table, travel[p * L + l], w) * direct[p * L + l]
-    out[i] = wp.cw_mul(B.albedo[B.tpl[i]], acc)
+        ph_l = phase_toward(ph, table, travel[p * L + l], w)
+        psum += ph_l
+        acc += ph_l * direct[p * L + l]
+    if sky != 0 and psum > 0.0:
+        acc = acc / psum
+    out[i] = out[i] + wp.cw_mul(B.albedo[B.tpl[i]], acc)
 
 
 @wp.kernel
 def shade_surfaces(offset: int, cam: RasterView, s: Surfaces, m: LightMap, P: Particles,
-                   lights: wp.array(dtype=Light), depth: wp.array(dtype=float), colour: wp.array(dtype=wp.vec3)):
+                   lights: wp.array(dtype=Light), m_sky: LightMap, sky: wp.array(dtype=Light),
+                   depth: wp.array(dtype=float), colour: wp.array(dtype=wp.vec3)):
     """Per pixel: the nearest surface's distance along the pixel ray (INF: none) and the
-    light it reflects, through the cloud (the light pass) and past the other surfaces."""
+    light it reflects, through the cloud (the light pass) and past the other surfaces; the
+    sky's as pi f L_sky sum_k cos_k T_k V_k / sum_k cos_k over its directions (exact for an
+    unshadowed diffuse surface)."""
     tid = wp.tid() + offset
     o, d = pixel_ray(cam, tid)
     hit, t, n, face = surface_hit(s, o, d, INF)
@@ -232,6 +287,18 @@ def shade_surfaces(offset: int, cam: RasterView, s: Surfaces, m: LightMap, P: Pa
             if cos_l > 0.0 and not occluded(s, x + RAY_EPS * n, wi, dist):
                 tr = transmittance_rgb(optical_depth_to_light(m, P, -1, l, lights[l], x))
                 L += cos_l * wp.cw_mul(wp.cw_mul(brdf_eval(mat, n, -d, wi), e), tr)
+        acc = wp.vec3(0.0)
+        csum = float(0.0)
+        for l in range(sky.shape[0]):
+            wi, dist, e = light_incident(sky[l], x)
+            cos_l = wp.dot(n, wi)
+            if cos_l > 0.0:
+                csum += cos_l
+                if not occluded(s, x + RAY_EPS * n, wi, dist):
+                    tr = transmittance_rgb(optical_depth_to_light(m_sky, P, -1, l, sky[l], x))
+                    acc += cos_l * wp.cw_mul(wp.cw_mul(brdf_eval(mat, n, -d, wi), e), tr)
+        if csum > 0.0:
+            L += acc * (PI / csum)
     depth[tid] = wp.where(hit, t, INF)
     colour[tid] = L
 
@@ -355,6 +422,8 @@ class DepthImpostors(Technique):
         self.texels = 0
         self.phase = self.table = None
         self.light_pass: LightPass | None = None
+        self.sky_pass: LightPass | None = None  # the sky's directions (None: a black sky, or sky_samples = 0)
+        self.sky = None
         self.impostors: Impostors | None = None
         self.texel_radiance = self.particle_radiance = None
         self.surf_depth = self.surf_colour = None
@@ -364,12 +433,12 @@ class DepthImpostors(Technique):
         surfaces = bool(self.scene.surfaces)
         return self.uploads.stages() + [
             Stage("blocks", self._blocks, reads=("medium",), settings=("impostor_res", "cluster", "light_pass")),
-            Stage("light", self._light, reads=("lights",),
-                  settings=("slices", "light_pass", "light_terms", "light_texels", "light_samples"),
+            Stage("light", self._light, reads=("lights", "background"),
+                  settings=("slices", "light_pass", "light_terms", "light_texels", "light_samples", "sky_samples"),
                   after=("blocks", "lights")),
             Stage("templates", self._templates, after=("blocks",)),
             Stage("impostors", self._impostors, reads=("camera",), after=("templates",)),
-            Stage("shade", self._shade, reads=("camera",), after=("light", "impostors")),
+            Stage("shade", self._shade, reads=("camera",), settings=("widen",), after=("light", "impostors")),
             Stage("surfaces_lit", self._surfaces_lit, reads=("camera",), after=("light", "surfaces"),
                   needed=surfaces),
             Stage("gather", self._gather, reads=("camera", "background"), settings=("object_depth",),
@@ -479,6 +548,12 @@ class DepthImpostors(Technique):
         self.light_pass = LightPass(self.device, REPRESENTATIONS[s["light_pass"]], slices=s["slices"],
                                     terms=s["light_terms"], texels=s["light_texels"])
         self.light_pass.build(self._cloud, self.uploads.lights, s["light_samples"])
+        self.sky = sky_lights(self.scene.background, s["sky_samples"], self.device)
+        self.sky_pass = None
+        if self.sky is not None:  # soft light: slices on a quarter of the sun's texels
+            self.sky_pass = LightPass(self.device, "slices", slices=s["slices"],
+                                      texels=max(16, (self.light_pass.M or 64) // 4))
+            self.sky_pass.build(self._cloud, self.sky, s["light_samples"])
 
     def _impostors(self):
         pc = pinhole(self.scene.camera)  # the camera's frame, right and up scaled by the field of view
@@ -493,25 +568,39 @@ class DepthImpostors(Technique):
             dev.launch(make_impostors, self.texels, [self.blocks, self._reach_t, imp, self._owner], self.device)
         self.impostors = imp
 
+    def _sky_args(self):
+        """The sky's map and directions for a kernel (an empty array when there is no sky)."""
+        if self.sky is None:
+            return self.light_pass.map, wp.empty(0, dtype=Light, device=self.device)
+        return self.sky_pass.map, self.sky
+
     def _shade(self):
         device, T = self.device, self.settings["impostor_res"]
         eye = wp.vec3(*self.scene.camera.origin)
-        L = len(self.scene.lights)
         self.texel_radiance = wp.zeros(max(self.n_textured * T * T, 1), dtype=wp.vec3, device=device)
         self.particle_radiance = wp.zeros(max(self.n_instances, 1), dtype=wp.vec3, device=device)
-        if not L:
+        m_sky, sky = self._sky_args()
+        if not len(self.scene.lights) and not sky.shape[0]:
             return
         if self.n_textured:
+            radii = self._cloud.radius
+            widen = self.settings["widen"] * (float(np.median(radii)) if len(radii) else 0.0)
             dev.launch(shade_texels, self.n_textured * T * T,
                        [self.blocks, self.impostors, self.light_pass.map, self._cloud.struct, self.uploads.lights,
-                        self.phase, self.table, eye, self._textured, self._first, self.texel_radiance], device)
+                        m_sky, sky, self.phase, self.table, eye, widen, self._textured, self._first,
+                        self.texel_radiance], device)
         if self.n_instances > self.n_textured:
             n = self._cloud.struct.centres.shape[0]
-            direct = wp.zeros(n * L, dtype=wp.vec3, device=device)
-            travel = wp.zeros(n * L, dtype=wp.vec3, device=device)
-            self.light_pass.direct(self._cloud, self.uploads.lights, self.settings["light_samples"], direct, travel)
-            dev.launch(shade_particles, self.n_instances, [self.blocks, direct, travel, L, self._particle_of,
-                                                           self.phase, self.table, eye, self.particle_radiance], device)
+            for lights, lp, is_sky in ((self.uploads.lights, self.light_pass, 0), (sky, self.sky_pass, 1)):
+                L = lights.shape[0]
+                if not L:
+                    continue
+                direct = wp.zeros(n * L, dtype=wp.vec3, device=device)
+                travel = wp.zeros(n * L, dtype=wp.vec3, device=device)
+                lp.direct(self._cloud, lights, self.settings["light_samples"], direct, travel)
+                dev.launch(shade_particles, self.n_instances, [self.blocks, direct, travel, L, self._particle_of,
+                                                               self.phase, self.table, eye, is_sky,
+                                                               self.particle_radiance], device)
 
     def _surfaces_lit(self):
         cam = self.scene.camera
@@ -519,7 +608,8 @@ class DepthImpostors(Technique):
         self.surf_depth = wp.empty(n, dtype=float, device=self.device)
         self.surf_colour = wp.empty(n, dtype=wp.vec3, device=self.device)
         dev.launch(shade_surfaces, n, [camera_view(pinhole(cam)), self.uploads.surfaces, self.light_pass.map,
-                                       self._cloud.struct, self.uploads.lights, self.surf_depth, self.surf_colour],
+                                       self._cloud.struct, self.uploads.lights, *self._sky_args(), self.surf_depth,
+                                       self.surf_colour],
                    self.device)
 
     def _gather(self):
