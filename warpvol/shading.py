@@ -10,6 +10,7 @@ import warp as wp
 
 from .geometry.intersect import ray_box
 from .geometry.mesh import Surfaces, occluded
+from .geometry.shadowmap import ShadowedLights, shadow_visibility, texel_world_size
 from .media.volume import Media, homogeneous_optical_depth, sigma_t_at, transmittance_estimate
 from .physics.brdf import Material, brdf_eval
 from .physics.constants import RAY_EPS, STREAM
@@ -57,3 +58,22 @@ def surface_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), p: wp.v
             tr = light_transmittance(m, s, start, wi, dist, c, wp.rand_init(wp.randi(rng), STREAM), march_steps)
             L += cos_l * wp.cw_mul(wp.cw_mul(brdf_eval(mat, n, wo, wi), e), tr)
     return L
+
+
+
+@wp.func
+def light_arriving(m: Media, sl: ShadowedLights, l: int, x: wp.vec3, n: wp.vec3, shadow_steps: int):
+    """(wi, E v, tau): the direction to light l, the irradiance it sends to x past the surfaces
+    (shadow-map visibility v), and the optical depth of the media on the way, left for the caller
+    to put into one exponential with its own. On a surface, ``n`` is its normal and the map is
+    read half a texel off it (normal offset); in the medium n = 0."""
+    wi, dist, e = light_incident(sl.lights[l], x)
+    if dist <= 0.0:
+        return wi, wp.vec3(0.0), wp.vec3(0.0)
+    p = x
+    if n[0] != 0.0 or n[1] != 0.0 or n[2] != 0.0:
+        p = x + (0.5 * texel_world_size(sl.maps[l], x)) * n
+    v = shadow_visibility(sl.maps[l], sl.depth, p)
+    if v <= 0.0:
+        return wi, wp.vec3(0.0), wp.vec3(0.0)
+    return wi, e * v, marched_optical_depth(m, x, wi, 0.0, dist, shadow_steps)

@@ -22,6 +22,7 @@ import warp as wp
 from . import device as dev
 from .geometry.camera import PinholeCamera
 from .geometry.mesh import Surfaces
+from .geometry.shadowmap import ShadowedLights, ShadowMap, shadow_map_depths, shadow_map_for, texels
 from .media.grid import grid_majorant, majorant_grid
 from .media.particles import ParticleBuffers, particle_majorant
 from .media.rbf import CUTOFF, rbf_majorant
@@ -29,6 +30,7 @@ from .media.volume import BOX, GRID, PARTICLES, RBF, SPHERE, Media, sample_extin
 from .physics.brdf import Material
 from .physics.lights import KINDS, Light
 from .physics.phase import Phase, phase_struct
+from .physics.constants import INF
 from .pipeline import SettingsError, Stage, Technique
 from .scene import load_scene
 from .scene.model import Camera, GridMedium, HomogeneousMedium, RBFMedium, Scene
@@ -89,6 +91,32 @@ def sky_lights(background, count: int, device) -> wp.array:
         light.cos_inner = light.cos_outer = 1.0
         out.append(light)
     return wp.array(out, dtype=Light, device=device)
+
+
+def shadow_map_structs(scene: Scene, res: int, bias: float, occluders: bool) -> list:
+    """One ``ShadowMap`` per scene light (kind NONE without occluders), laid end to end in
+    one texel array: the maps of the scene's bounds (``shadow_map_for``)."""
+    bounds = scene_bounds(scene)
+    out, offset = [], 0
+    for light in scene.lights:
+        sm = shadow_map_for(light, res, bias, bounds, offset, occluders)
+        out.append(sm)
+        offset += texels(sm.kind, res)
+    return out
+
+
+def shadowed_lights(scene: Scene, lights: wp.array, surfaces: Surfaces, res: int, bias: float,
+                    device) -> ShadowedLights:
+    """The scene's lights with their shadow maps, made by casting one ray per texel through the
+    surfaces' BVH; without surfaces (or lights) every map says "lit" and nothing is cast."""
+    occluders = bool(scene.surfaces) and bool(scene.lights)
+    structs = shadow_map_structs(scene, res, bias, occluders)
+    sl = ShadowedLights()
+    sl.lights = lights
+    sl.maps = wp.array(structs or [ShadowMap()], dtype=ShadowMap, device=device)
+    sl.depth = (shadow_map_depths(structs, device, surfaces=surfaces) if occluders
+                else wp.full(1, INF, dtype=float, device=device))
+    return sl
 
 
 def check_particle_scene(technique: str, scene: Scene) -> None:

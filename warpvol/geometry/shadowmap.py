@@ -24,6 +24,7 @@ import warp as wp
 
 from .. import device as dev
 from ..physics.constants import INF
+from ..physics.lights import Light
 from .mesh import Surfaces
 from .raster import (
     NO_HIT,
@@ -55,6 +56,14 @@ class ShadowMap:
     res: int
     offset: int
     bias: float
+
+
+@wp.struct
+class ShadowedLights:
+    """Lights and their shadow maps (``shading.light_arriving`` reads them)."""
+    lights: wp.array(dtype=Light)
+    maps: wp.array(dtype=ShadowMap)  # one per light
+    depth: wp.array(dtype=float)  # the maps' texels
 
 
 @wp.func

@@ -110,6 +110,17 @@ def in_scatter_at(m: Media, x: wp.vec3, cos_theta: float) -> wp.vec3:
 
 
 @wp.func
+def scattering_at(m: Media, x: wp.vec3) -> wp.vec3:
+    """sum_m sigma_s,m(x): the scattering coefficient (in_scatter_at without the phase function)."""
+    s = wp.vec3(0.0)
+    for i in range(m.count):
+        dens = medium_density(m, i, x)
+        if dens > 0.0:
+            s += dens * wp.cw_mul(m.sigma[i], m.albedo[i])
+    return s
+
+
+@wp.func
 def inside_convex(m: Media, i: int, x: wp.vec3) -> bool:
     """Whether x lies in homogeneous medium i (a box or a sphere)."""
     if m.kind[i] == SPHERE:

@@ -174,6 +174,22 @@ def colonnade_shafts():
     }
 
 
+def dusty_lamp():
+    """A lamp in dusty air over a floor, a shade beside it casting a shadow through the dust
+    (papers/002's setting: glow and shafts through visible particles), 320x240."""
+    return {
+        "name": "dusty-lamp",
+        "background": [0.0, 0.0, 0.0],
+        "camera": _camera(width=320, height=240, origin=(0.0, 0.4, 5.0), target=(0.0, 0.3, 0.0), fov_y=45.0),
+        "lights": [{"type": "point", "position": [0.0, 1.1, 0.0], "intensity": [9.0, 8.0, 6.5]}],
+        "media": [{"type": "homogeneous", "shape": "box", "center": [0.0, 0.6, 0.0], "size": [5.0, 3.6, 5.0],
+                   "sigma_t": 0.25, "albedo": 0.9, "phase": {"type": "isotropic"}}],
+        "surfaces": [{"type": "plane", "center": [0.0, -1.2, 0.0], "normal": [0.0, 1.0, 0.0], "size": [5.0, 5.0],
+                      "diffuse": 0.5},
+                     {"type": "box", "center": [0.45, 0.75, 0.0], "size": [0.5, 0.06, 0.9], "diffuse": 0.3}],
+    }
+
+
 BUILTIN = {
     "fog-box": fog_box,
     "point-in-fog": point_in_fog,
@@ -183,4 +199,5 @@ BUILTIN = {
     "rbf-thick-fog": rbf_thick_fog,
     "particle-cloud": particle_cloud,
     "colonnade-shafts": colonnade_shafts,
+    "dusty-lamp": dusty_lamp,
 }

@@ -78,22 +78,19 @@ from ..geometry.raster import (
     view_ray,
 )
 from ..geometry.shadowmap import (
+    ShadowedLights,
     ShadowMap,
     shadow_map_depths,
-    shadow_map_for,
-    shadow_visibility,
     texel_ray,
-    texel_world_size,
     texels,
 )
 from ..media.volume import Media, homogeneous_optical_depth, in_scatter_at, sigma_t_at
 from ..physics.brdf import brdf_eval
 from ..physics.constants import INF, RAY_EPS
-from ..physics.lights import Light, light_incident
 from ..physics.transmittance import transmittance_rgb
 from ..pipeline import Setting, Stage, Technique
-from ..shading import marched_optical_depth
-from ..upload import SceneUploads, pinhole, scene_bounds
+from ..shading import light_arriving, marched_optical_depth
+from ..upload import SceneUploads, pinhole, scene_bounds, shadow_map_structs
 
 NAME = "light_shafts"
 SETTINGS = {
@@ -128,13 +125,6 @@ class ShaftSettings:
 
 
 @wp.struct
-class ShadowedLights:
-    lights: wp.array(dtype=Light)
-    maps: wp.array(dtype=ShadowMap)  # one per light
-    depth: wp.array(dtype=float)  # the maps' texels
-
-
-@wp.struct
 class VisibleSurface:
     """Per pixel, from the visible stage: the surface's distance and face (-1: none), the view
     ray's media segment (t_in, t_end, t_out), and the triangles the faces index."""
@@ -143,24 +133,6 @@ class VisibleSurface:
     segs: wp.array(dtype=wp.vec3)
     points: wp.array(dtype=wp.vec3)
     indices: wp.array(dtype=int)
-
-
-@wp.func
-def light_arriving(m: Media, sl: ShadowedLights, l: int, x: wp.vec3, n: wp.vec3, shadow_steps: int):
-    """(wi, E v, tau): the direction to light l, the irradiance it sends to x past the surfaces
-    (shadow-map visibility v), and the optical depth of the media on the way, left for the caller
-    to put into one exponential with its own. On a surface, ``n`` is its normal and the map is
-    read half a texel off it (normal offset); in the medium n = 0."""
-    wi, dist, e = light_incident(sl.lights[l], x)
-    if dist <= 0.0:
-        return wi, wp.vec3(0.0), wp.vec3(0.0)
-    p = x
-    if n[0] != 0.0 or n[1] != 0.0 or n[2] != 0.0:
-        p = x + (0.5 * texel_world_size(sl.maps[l], x)) * n
-    v = shadow_visibility(sl.maps[l], sl.depth, p)
-    if v <= 0.0:
-        return wi, wp.vec3(0.0), wp.vec3(0.0)
-    return wi, e * v, marched_optical_depth(m, x, wi, 0.0, dist, shadow_steps)
 
 
 @wp.kernel
@@ -423,14 +395,7 @@ class LightShafts(Technique):
         ]
 
     def _map_structs(self, occluders: bool) -> list[ShadowMap]:
-        res, bias = self.settings["shadow_map_res"], self.settings["depth_bias"]
-        bounds = scene_bounds(self.scene)
-        out, offset = [], 0
-        for light in self.scene.lights:
-            sm = shadow_map_for(light, res, bias, bounds, offset, occluders)
-            out.append(sm)
-            offset += texels(sm.kind, res)
-        return out
+        return shadow_map_structs(self.scene, self.settings["shadow_map_res"], self.settings["depth_bias"], occluders)
 
     def _mesh_arrays(self):
         """(points, indices, face of each triangle) of the triangles the rasteriser takes: the

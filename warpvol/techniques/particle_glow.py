@@ -1,0 +1,321 @@
+"""Particle glow: glowing light through visible particles (papers/002).
+
+The paper marches each view ray and adds, at every step, the light of a *nearby particle*
+to the light at the step, so that a lamp's glow and its shafts look grainy, "jittered
+through particles", and soften at their edges. It is empirical; every constant is a
+setting defaulting to the paper's value. Per step i at R_i (section 4, equation 1):
+
+    I = I_o + (1 - (1 - d)^0.4) I_s
+
+* ``I_o``, the direct sample: the light scattered at R_i toward the eye, sigma_s p E T V,
+  T the media's transmittance to the light, V the light's shadow map (step 1 of the paper's
+  list; the shadow maps ``geometry/shadowmap.py`` builds for light_shafts too).
+* ``d`` (d-bar), the particle density of R_i's unit cell: a texture of ``texture_res``^3
+  cells of side ``cell`` that tiles space, each d = CDF(x | mu, sigma) of a value x drawn
+  once per cell, uniformly in (0, ``density_x``]. Equation 2 prints a *normal* CDF; the
+  text (and figure 4's captions, "log-normal distribution function with mu = 2, sigma =
+  0.1", which figure 5 renders) names the log-normal: ``density_cdf`` 0 (default) is the
+  log-normal Phi((ln x - mu) / sigma), 1 the normal Phi((x - mu) / sigma) as printed. The
+  paper does not say what x is; reading it as a per-cell random variable whose CDF sets the
+  density reproduces figure 5's contrast (mu = 2: sparse, mu = 0: dense).
+* The nearby particle C_i = R_i + D_i dir (equations 3-4), D_i = k_c (1 - d) in cells
+  (k_c = 7; the paper's "unit space" read as the cell), ``dir`` from a texture of
+  uniformly distributed unit directions tiling space the same way. Both textures are
+  fixed in the world (seeded by ``seed``), so the grain stays put as the camera moves.
+* ``I_s``, the nearby particle's radiance from Sun et al. 2005's surface radiance model
+  (appendix B, equation 9), the particle a Lambertian patch facing R_i (normal -dir) with
+  BRDF k_d = albedo / pi: I0 k_d [exp(-T) cos(theta_s) / D^2 + beta^2 G_0(T, theta_s) /
+  (2 pi T)], T = beta D, D the particle's distance to the light, beta = ((1 - d) + c1) c2
+  (equation 5; c1 = 0.05 keeps beta > 0, c2 = 0.03, per scene unit), shadowed by the light's
+  map at C_i ("get the light intensity at the desired point", step 3.4). G_0 is tabulated
+  once (``physics.airlight.g_table``). A directional light is a point light at the
+  media's boundary along its direction (I0 = E D^2). ``specular`` = k_s > 0 adds the term
+  the paper dropped (appendix B, equation 8) with a Phong lobe of exponent ``shininess`` and
+  its G_n: the glints of figure 7.
+* How I and I_s add up along the ray, the paper does not say ("return the sum"). Here
+  sigma_s (I_o-source + w I_s) is the source of the radiative transfer equation: each step
+  adds T_cam sigma_s (p E T V + w I_s) (1 - exp(-sigma_t dt)) / sigma_t, so the image does not
+  depend on the number of steps, and with ``glow`` = 0 (or a density of 0 everywhere) it is
+  the single-scattering march through shadow maps. The weight's two printings, 1 - (1 -
+  d)^0.4 (equation 1) and 1 - d^0.4 (the text after it): equation 1, ``exponent`` = 0.4.
+
+A 1/D^2 that would diverge at the light (a light at a march point) is the mean of 1/D^2
+over a ball of half a step (``ball_mean_inverse_square``), as a step samples that much.
+Surfaces are lit directly through the shadow maps (normal offset).
+
+Stages: medium, surfaces, lights (uploads), textures (density and directions), tables
+(G_0, and G_n for the specular term), shadow_maps (surfaces and lights; not built without
+surfaces), march.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import warp as wp
+
+from .. import device as dev
+from ..geometry.camera import camera_view
+from ..geometry.intersect import ray_box
+from ..geometry.mesh import Surfaces, surface_hit
+from ..geometry.raster import RasterView, pixel_ray
+from ..geometry.shadowmap import ShadowedLights, shadow_visibility
+from ..media.volume import Media, in_scatter_at, scattering_at, sigma_t_at
+from ..physics.airlight import g_table, surface_radiance
+from ..physics.brdf import brdf_eval
+from ..physics.constants import INF, PI
+from ..physics.lights import DIRECTIONAL, SPOT, ball_mean_inverse_square, spot_falloff
+from ..physics.transmittance import step_integral_rgb, transmittance_rgb
+from ..pipeline import Setting, Stage, Technique
+from ..shading import light_arriving
+from ..upload import SceneUploads, pinhole, shadowed_lights
+
+NAME = "particle_glow"
+SETTINGS = {
+    "steps": Setting(128, 1, 1 << 16, "march steps along each view ray's media segment"),
+    "shadow_map_res": Setting(256, 4, 8192, "texels per side of each shadow map (cube maps: per face)"),
+    "depth_bias": Setting(0.02, 0.0, 1.0e3, "shadow-map depth bias, scene units"),
+    "shadow_steps": Setting(32, 1, 1 << 16, "steps toward a light through heterogeneous media"),
+    "glow": Setting(1, 0, 1, "0: the direct sample I_o alone (a single-scattering march through shadow maps)"),
+    "k_c": Setting(7.0, 0.0, 1.0e4, "equation 3: the nearby particle lies up to k_c cells from the march point"),
+    "c1": Setting(0.05, 0.0, 1.0e3, "equation 5: beta = ((1 - d) + c1) c2; c1 keeps beta > 0 where d = 1"),
+    "c2": Setting(0.03, 0.0, 1.0e6, "equation 5: beta's scale, per scene unit"),
+    "exponent": Setting(0.4, 0.0, 100.0, "equation 1: I_s weighs 1 - (1 - d)^exponent"),
+    "mu": Setting(0.5, -100.0, 100.0, "the density distribution's mu (log-normal: of ln x)"),
+    "sigma": Setting(0.5, 1.0e-6, 100.0, "the density distribution's sigma (log-normal: of ln x)"),
+    "density_cdf": Setting(0, 0, 1, "0: log-normal CDF (the text); 1: normal CDF (equation 2 as printed)"),
+    "density_x": Setting(4.0, 1.0e-6, 1.0e6, "each cell's x is drawn uniformly in (0, density_x]; d = CDF(x)"),
+    "cell": Setting(0.0, 0.0, 1.0e6, "side of a density cell, scene units; 0: the media's bounding diagonal / 64"),
+    "texture_res": Setting(32, 1, 256, "cells per side of the density and direction textures (they tile space)"),
+    "seed": Setting(0, 0, 2**31 - 1, "seed of the density texture"),
+    "direction_seed": Setting(1, 0, 2**31 - 1, "seed of the direction texture"),
+    "specular": Setting(0.0, 0.0, 1.0e3, "k_s of the specular term the paper dropped (appendix B, equation 8); 0: off"),
+    "shininess": Setting(20.0, 1.0, 1.0e4, "Phong exponent n of the specular term"),
+}
+
+
+@wp.struct
+class Glow:
+    steps: int
+    shadow_steps: int
+    glow: int
+    k_c: float
+    c1: float
+    c2: float
+    cell: float
+    res: int  # texture cells per side
+    k_s: float
+    shininess: float
+    density: wp.array(dtype=float)  # res^3 cells: d in [0, 1]
+    weight: wp.array(dtype=float)  # res^3 cells: I_s's weight 1 - (1 - d)^exponent
+    direction: wp.array(dtype=wp.vec3)  # res^3 unit vectors
+    g0: wp.array2d(dtype=float)  # G_0 e^T (physics.airlight.g_table)
+    gn: wp.array2d(dtype=float)  # G_n e^T for the specular lobe (n = shininess)
+    lo: wp.vec3  # the media's bounds: a directional light enters there
+    hi: wp.vec3
+
+
+@wp.func
+def cell_of(gs: Glow, x: wp.vec3) -> int:
+    """The texture cell holding x; the textures repeat every ``res`` cells along each axis."""
+    R = gs.res
+    i = int(wp.floor(x[0] / gs.cell)) % R
+    j = int(wp.floor(x[1] / gs.cell)) % R
+    k = int(wp.floor(x[2] / gs.cell)) % R
+    i = wp.where(i < 0, i + R, i)
+    j = wp.where(j < 0, j + R, j)
+    k = wp.where(k < 0, k + R, k)
+    return (k * R + j) * R + i
+
+
+@wp.func
+def particle_radiance(gs: Glow, sl: ShadowedLights, c: wp.vec3, normal: wp.vec3, beta: float, r_ball: float,
+                      albedo: wp.vec3) -> wp.vec3:
+    """I_s: what the particle at c (a Lambertian patch facing ``normal``, BRDF albedo / pi,
+    plus k_s Phong) sends back, by Sun et al.'s surface radiance model, per light, shadowed
+    by the light's map at c."""
+    L = wp.vec3(0.0)
+    for l in range(sl.lights.shape[0]):
+        light = sl.lights[l]
+        wi = wp.vec3(0.0)
+        dist = float(0.0)
+        inv_d2 = float(0.0)
+        strength = light.strength
+        directional = light.kind == DIRECTIONAL
+        if directional:  # a point light where the light enters the media, I0 = E D^2
+            wi = -light.direction
+            a, b = ray_box(c, wi, gs.lo, gs.hi)
+            dist = wp.max(b, 0.0)
+        else:
+            to = light.position - c
+            dist = wp.length(to)
+            wi = wp.where(dist > 0.0, to / wp.max(dist, 1.0e-30), normal)
+            if light.kind == SPOT:
+                strength = light.strength * spot_falloff(light, wp.dot(-wi, light.direction))
+            inv_d2 = wp.where(dist > 8.0 * r_ball, 1.0 / wp.max(dist * dist, 1.0e-30),
+                              ball_mean_inverse_square(r_ball, dist))  # beyond 8 r the mean is 1/D^2 within 0.3%
+            dist = wp.max(dist, r_ball)
+        if strength[0] > 0.0 or strength[1] > 0.0 or strength[2] > 0.0:
+            v = shadow_visibility(sl.maps[l], sl.depth, c)
+            if v > 0.0:
+                cos_s = wp.dot(normal, wi)
+                d2 = wp.where(directional, dist * dist, 1.0)  # directional: I0 / E = D^2
+                diffuse = surface_radiance(gs.g0, beta, dist, inv_d2, cos_s, 1.0) * d2
+                if directional:
+                    diffuse += wp.exp(-beta * dist) * wp.max(cos_s, 0.0)
+                s = diffuse * albedo / PI
+                if gs.k_s > 0.0:  # the viewer (R_i) lies along the normal: the mirror direction is the normal
+                    spec = surface_radiance(gs.gn, beta, dist, inv_d2, cos_s, gs.shininess) * d2
+                    if directional:
+                        spec += wp.exp(-beta * dist) * wp.pow(wp.max(cos_s, 0.0), gs.shininess)
+                    s += wp.vec3(gs.k_s * spec)
+                L += v * wp.cw_mul(s, strength)
+    return L
+
+
+@wp.kernel
+def march_glow(offset: int, cam: RasterView, m: Media, s: Surfaces, sl: ShadowedLights, gs: Glow,
+               background: wp.vec3, image: wp.array(dtype=wp.vec3)):
+    """Per pixel: the march of section 4 over the media segment in front of the nearest
+    surface, equation 1 at every step, then the surface (lit through the shadow maps) or the
+    background, attenuated."""
+    tid = wp.tid() + offset
+    o, d = pixel_ray(cam, tid)
+    hit, t_surf, n, face = surface_hit(s, o, d, INF)
+    a, b = ray_box(o, d, m.all_min, m.all_max)
+    ta = wp.max(a, 0.0)
+    tb = wp.min(b, t_surf)
+    tr = wp.vec3(1.0)
+    L = wp.vec3(0.0)
+    if ta < tb:
+        dt = (tb - ta) / float(gs.steps)
+        for k in range(gs.steps):
+            x = o + (ta + (float(k) + 0.5) * dt) * d
+            sig = sigma_t_at(m, x, False)
+            if sig[0] > 0.0 or sig[1] > 0.0 or sig[2] > 0.0:
+                src = wp.vec3(0.0)
+                for l in range(sl.lights.shape[0]):  # I_o: the direct sample
+                    wi, e, tau = light_arriving(m, sl, l, x, wp.vec3(0.0), gs.shadow_steps)
+                    if e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0:
+                        src += wp.cw_mul(wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e), transmittance_rgb(tau))
+                if gs.glow != 0 and sl.lights.shape[0] > 0:  # I_s: the nearby particle's light
+                    cell = cell_of(gs, x)
+                    dbar = gs.density[cell]
+                    w = gs.weight[cell]
+                    if w > 0.0:
+                        dirn = gs.direction[cell]
+                        c = x + (gs.k_c * (1.0 - dbar) * gs.cell) * dirn
+                        beta = ((1.0 - dbar) + gs.c1) * gs.c2
+                        sig_s = scattering_at(m, x)
+                        albedo = wp.cw_div(sig_s, wp.max(sig, wp.vec3(1.0e-30)))
+                        src += w * wp.cw_mul(sig_s, particle_radiance(gs, sl, c, -dirn, beta, 0.5 * dt, albedo))
+                L += wp.cw_mul(wp.cw_mul(tr, src), step_integral_rgb(sig, dt))
+                tr = wp.cw_mul(tr, transmittance_rgb(sig * dt))
+    if hit:
+        nf = wp.where(wp.dot(n, d) < 0.0, n, -n)
+        p = o + t_surf * d
+        mat = s.material[face]
+        Ls = wp.vec3(0.0)
+        for l in range(sl.lights.shape[0]):
+            wi, e, tau = light_arriving(m, sl, l, p, nf, gs.shadow_steps)
+            cos_l = wp.dot(nf, wi)
+            if cos_l > 0.0:
+                Ls += cos_l * wp.cw_mul(wp.cw_mul(brdf_eval(mat, nf, -d, wi), e), transmittance_rgb(tau))
+        L += wp.cw_mul(tr, Ls)
+    else:
+        L += wp.cw_mul(tr, background)
+    image[tid] = L
+
+
+def _normal_cdf(z: np.ndarray) -> np.ndarray:
+    return 0.5 * (1.0 + np.vectorize(math.erf)(z / math.sqrt(2.0)))
+
+
+def density_texture(res: int, mu: float, sigma: float, x_max: float, lognormal: bool, seed: int) -> np.ndarray:
+    """res^3 cell densities d = CDF(x | mu, sigma), x uniform in (0, x_max] per cell (float32)."""
+    x = (1.0 - np.random.default_rng(seed).random(res**3)) * x_max  # (0, x_max]
+    z = (np.log(x) - mu) / sigma if lognormal else (x - mu) / sigma
+    return _normal_cdf(z).astype(np.float32)
+
+
+def direction_texture(res: int, seed: int) -> np.ndarray:
+    """res^3 unit vectors, uniformly distributed over the sphere (float32)."""
+    u = np.random.default_rng(seed).random((res**3, 2))
+    z = 1.0 - 2.0 * u[:, 0]
+    r = np.sqrt(np.maximum(1.0 - z * z, 0.0))
+    phi = 2.0 * np.pi * u[:, 1]
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1).astype(np.float32)
+
+
+class ParticleGlow(Technique):
+    """papers/002: a march with a nearby particle's light at every step (module docstring)."""
+
+    NAME = NAME
+    SETTINGS = SETTINGS
+
+    def __init__(self, scene, device, settings, progress=False):
+        super().__init__(scene, device, settings, progress)
+        self.uploads = SceneUploads(self)
+        self.density = self.weight = self.direction = None
+        self.g0 = self.gn = None
+        self.sl: ShadowedLights | None = None
+        self.image = None
+
+    def stages(self):
+        return self.uploads.stages() + [
+            Stage("textures", self._textures, settings=("mu", "sigma", "density_cdf", "density_x", "texture_res", "seed",
+                                                        "direction_seed", "exponent")),
+            Stage("tables", self._tables, settings=("specular", "shininess")),
+            Stage("shadow_maps", self._shadow_maps, reads=("lights",), settings=("shadow_map_res", "depth_bias"),
+                  after=("surfaces", "lights")),
+            Stage("march", self._march, reads=("camera", "background"),
+                  settings=("steps", "shadow_steps", "glow", "k_c", "c1", "c2", "cell"),
+                  after=("medium", "textures", "tables", "shadow_maps")),
+        ]
+
+    def _textures(self):
+        s = self.settings
+        d = density_texture(s["texture_res"], s["mu"], s["sigma"], s["density_x"], s["density_cdf"] == 0, s["seed"])
+        self.density = wp.array(d, dtype=float, device=self.device)
+        self.weight = wp.array((1.0 - np.maximum(1.0 - d.astype(np.float64), 0.0) ** s["exponent"]).astype(np.float32),
+                               dtype=float, device=self.device)
+        self.direction = wp.array(direction_texture(s["texture_res"], s["direction_seed"]), dtype=wp.vec3,
+                                  device=self.device)
+
+    def _tables(self):
+        self.g0 = wp.array(g_table(1), dtype=float, device=self.device)
+        n = self.settings["shininess"] if self.settings["specular"] > 0.0 else 1.0
+        self.gn = self.g0 if n == 1.0 else wp.array(g_table(float(n)), dtype=float, device=self.device)
+
+    def _shadow_maps(self):
+        s = self.settings
+        self.sl = shadowed_lights(self.scene, self.uploads.lights, self.uploads.surfaces, s["shadow_map_res"],
+                                  s["depth_bias"], self.device)
+
+    def glow_struct(self) -> Glow:
+        s = self.settings
+        gs = Glow()
+        gs.steps, gs.shadow_steps, gs.glow = s["steps"], s["shadow_steps"], s["glow"]
+        gs.k_c, gs.c1, gs.c2 = s["k_c"], s["c1"], s["c2"]
+        media = self.uploads.media.struct
+        diag = float(np.linalg.norm(np.asarray(media.all_max, np.float64) - np.asarray(media.all_min, np.float64)))
+        gs.cell = s["cell"] or (diag / 64.0 if np.isfinite(diag) and diag > 0.0 else 1.0)
+        gs.res = s["texture_res"]
+        gs.k_s, gs.shininess = s["specular"], s["shininess"]
+        gs.density, gs.weight, gs.direction, gs.g0, gs.gn = self.density, self.weight, self.direction, self.g0, self.gn
+        gs.lo, gs.hi = media.all_min, media.all_max
+        return gs
+
+    def _march(self):
+        scene, u = self.scene, self.uploads
+        npix = scene.camera.width * scene.camera.height
+        self.image = wp.empty(npix, dtype=wp.vec3, device=self.device)
+        dev.launch(march_glow, npix, [camera_view(pinhole(scene.camera)), u.media.struct, u.surfaces, self.sl,
+                                      self.glow_struct(), wp.vec3(*scene.background), self.image], self.device)
+
+    def output(self):
+        return self.image
+
+
+TECHNIQUE = ParticleGlow
