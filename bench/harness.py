@@ -172,7 +172,7 @@ def digest(obj) -> str:
 #: Bumped when the reference's estimator changes, so cached images from an older one are not
 #: reused: 2 = free flight by superposition, independent forked random streams and Russian
 #: roulette capped at 0.995 (same means, other noise).
-REFERENCE_VERSION = 2
+REFERENCE_VERSION = 3  # 3: single scattering includes the sky's light
 
 
 def reference_image(scene, device: str, **settings) -> tuple[np.ndarray, float]:

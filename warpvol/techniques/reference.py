@@ -18,6 +18,9 @@ Per camera sample it follows a path through media and off surfaces:
   escaping rays see the background.
 * ``max_bounces`` counts scattering events (volume or surface): 1 is single scattering,
   -1 unlimited (Russian roulette after 5 events, survival at most 0.995 an event). Mitsuba's max_depth is one more.
+  The background is a light too: after the last event the path's sampled continuation
+  still adds the background if it escapes (``sky_after_last``), so single scattering
+  includes the sky's light scattered once, as Mitsuba's environment emitter does.
 
 If extinction differs between R, G and B, each channel is traced on its own (three
 launches), so distance sampling stays exact per channel. Per-pixel sums go to float64.
@@ -168,6 +171,18 @@ def segment_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), o: wp.v
 
 
 @wp.func
+def sky_after_last(m: Media, s: Surfaces, o: wp.vec3, d: wp.vec3, background: wp.vec3, c: int,
+                   rng: wp.uint32) -> wp.vec3:
+    """After a path's last scattering event (``max_bounces``), its continuation d still counts
+    if it escapes to the background: the sky is a light, and light from it that scattered
+    max_bounces times belongs in the image. Zero past a surface; through the media an
+    unbiased transmittance estimate."""
+    if background[0] <= 0.0 and background[1] <= 0.0 and background[2] <= 0.0:
+        return wp.vec3(0.0)
+    return wp.cw_mul(light_transmittance(m, s, o, d, INF, c, rng, 0), background)
+
+
+@wp.func
 def trace_path(cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Light), background: wp.vec3,
                st: PathSettings, px: int, py: int, rng: wp.uint32) -> wp.vec3:
     jx = float(0.5)
@@ -203,8 +218,6 @@ def trace_path(cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Li
             collided = i >= 0
         if collided:
             events += 1
-            if events >= st.max_events:
-                break
             x = o + t * d
             u1 = wp.randf(rng)
             u2 = wp.randf(rng)
@@ -212,14 +225,15 @@ def trace_path(cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Li
             beta = wp.cw_mul(beta, m.albedo[i]) * weight
             o = x
             d = wi
+            if events >= st.max_events:  # the last event: only the sky may still reach it
+                L += wp.cw_mul(beta, sky_after_last(m, s, o, d, background, c, wp.rand_init(wp.randi(rng), STREAM)))
+                break
         elif hit:
             events += 1
             p = o + t_surf * d
             nf = wp.where(wp.dot(n, d) < 0.0, n, -n)
             mat = s.material[face]
             L += wp.cw_mul(beta, surface_direct(m, s, lights, p, nf, -d, mat, c, wp.rand_init(wp.randi(rng), STREAM), 0))
-            if events >= st.max_events:
-                break
             # cosine-weighted bounce: weight f cos / pdf = pi f
             r = wp.sqrt(wp.randf(rng))
             phi = TWO_PI * wp.randf(rng)
@@ -228,6 +242,9 @@ def trace_path(cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Li
             beta = wp.cw_mul(beta, brdf_eval(mat, nf, -d, wi)) * PI
             o = p + RAY_EPS * nf
             d = wi
+            if events >= st.max_events:  # the last event: only the sky may still reach it
+                L += wp.cw_mul(beta, sky_after_last(m, s, o, d, background, c, wp.rand_init(wp.randi(rng), STREAM)))
+                break
         else:
             L += wp.cw_mul(beta, background)
             break
