@@ -310,8 +310,24 @@ def speed_section(rows: list[dict], png: Path | None) -> list[str]:
     return lines
 
 
+def table_section(rows: list[dict], png: Path) -> list[str]:
+    """Each row's ``table`` fields, its frame time and stages, and the images it shows."""
+    keys = list(rows[0]["table"])
+    lines = ["| parameters | ms / frame | " + " | ".join(keys) + " | stages ran (ms) |",
+             "|---|---|" + "---|" * len(keys) + "---|"]
+    for r in rows:
+        cells = [f"{v:.4g}" if isinstance(v, float) else str(v) for v in (r["table"].get(k, "") for k in keys)]
+        lines.append(f"| {_params(r)} | {r['median_ms']:.1f} | " + " | ".join(cells) + f" | {_stages(r)} |")
+    shown = [r for r in rows if r.get("images")]
+    if shown:
+        lines += ["", " ".join(f"![{_params(r)}]({f})" for r in shown for f in r["images"].values()), "",
+                  "Images, left to right: " + "; ".join(_params(r) for r in shown) + "."]
+    lines += ["", f"Scene: {rows[0].get('scene', '')}."]
+    return lines
+
+
 SECTIONS = {"animated": animated_section, "convergence": convergence_section, "bound": bound_section, "accuracy": accuracy_section, "scaling": scaling_section, "rules": rules_section, "paper": paper_section, "overhead": overhead_section, "speed": speed_section,
-            "edges": edges_section, "speedup": speedup_section, "lightpass": lightpass_section}
+            "edges": edges_section, "speedup": speedup_section, "lightpass": lightpass_section, "table": table_section}
 
 
 def write_report(out: Path, name: str) -> Path | None:

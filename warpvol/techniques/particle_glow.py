@@ -90,6 +90,9 @@ SETTINGS = {
     "texture_res": Setting(32, 1, 256, "cells per side of the density and direction textures (they tile space)"),
     "seed": Setting(0, 0, 2**31 - 1, "seed of the density texture"),
     "direction_seed": Setting(1, 0, 2**31 - 1, "seed of the direction texture"),
+    "anchor": Setting(0, 0, 1, "where the nearby particle is placed from: 0 the march point R_i (equation 4, the "
+                               "paper); 1 the centre of R_i's cell (the particle fixed in the world: no shimmer "
+                               "as the march points slide with the camera)"),
     "specular": Setting(0.0, 0.0, 1.0e3, "k_s of the specular term the paper dropped (appendix B, equation 8); 0: off"),
     "shininess": Setting(20.0, 1.0, 1.0e4, "Phong exponent n of the specular term"),
 }
@@ -105,6 +108,7 @@ class Glow:
     c2: float
     cell: float
     res: int  # texture cells per side
+    anchor: int  # 0: C_i from the march point; 1: from its cell's centre
     k_s: float
     shininess: float
     density: wp.array(dtype=float)  # res^3 cells: d in [0, 1]
@@ -205,7 +209,11 @@ def march_glow(offset: int, cam: RasterView, m: Media, s: Surfaces, sl: Shadowed
                     w = gs.weight[cell]
                     if w > 0.0:
                         dirn = gs.direction[cell]
-                        c = x + (gs.k_c * (1.0 - dbar) * gs.cell) * dirn
+                        base = x
+                        if gs.anchor != 0:
+                            base = (wp.vec3(wp.floor(x[0] / gs.cell), wp.floor(x[1] / gs.cell),
+                                            wp.floor(x[2] / gs.cell)) + wp.vec3(0.5)) * gs.cell
+                        c = base + (gs.k_c * (1.0 - dbar) * gs.cell) * dirn
                         beta = ((1.0 - dbar) + gs.c1) * gs.c2
                         sig_s = scattering_at(m, x)
                         albedo = wp.cw_div(sig_s, wp.max(sig, wp.vec3(1.0e-30)))
@@ -270,7 +278,7 @@ class ParticleGlow(Technique):
             Stage("shadow_maps", self._shadow_maps, reads=("lights",), settings=("shadow_map_res", "depth_bias"),
                   after=("surfaces", "lights")),
             Stage("march", self._march, reads=("camera", "background"),
-                  settings=("steps", "shadow_steps", "glow", "k_c", "c1", "c2", "cell"),
+                  settings=("steps", "shadow_steps", "glow", "k_c", "c1", "c2", "cell", "anchor"),
                   after=("medium", "textures", "tables", "shadow_maps")),
         ]
 
@@ -301,7 +309,7 @@ class ParticleGlow(Technique):
         media = self.uploads.media.struct
         diag = float(np.linalg.norm(np.asarray(media.all_max, np.float64) - np.asarray(media.all_min, np.float64)))
         gs.cell = s["cell"] or (diag / 64.0 if np.isfinite(diag) and diag > 0.0 else 1.0)
-        gs.res = s["texture_res"]
+        gs.res, gs.anchor = s["texture_res"], s["anchor"]
         gs.k_s, gs.shininess = s["specular"], s["shininess"]
         gs.density, gs.weight, gs.direction, gs.g0, gs.gn = self.density, self.weight, self.direction, self.g0, self.gn
         gs.lo, gs.hi = media.all_min, media.all_max
