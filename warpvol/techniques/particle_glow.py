@@ -85,7 +85,8 @@ SETTINGS = {
     "mu": Setting(0.5, -100.0, 100.0, "the density distribution's mu (log-normal: of ln x)"),
     "sigma": Setting(0.5, 1.0e-6, 100.0, "the density distribution's sigma (log-normal: of ln x)"),
     "density_cdf": Setting(0, 0, 1, "0: log-normal CDF (the text); 1: normal CDF (equation 2 as printed)"),
-    "density_x": Setting(4.0, 1.0e-6, 1.0e6, "each cell's x is drawn uniformly in (0, density_x]; d = CDF(x)"),
+    "density_x": Setting(10.0, 1.0e-6, 1.0e6, "each cell's x is drawn uniformly in (0, density_x]; d = CDF(x) "
+                                            "(10: figure 5's mu = 2, sigma = 0.1 sparse, mu = 0 dense)"),
     "cell": Setting(0.0, 0.0, 1.0e6, "side of a density cell, scene units; 0: the media's bounding diagonal / 64"),
     "texture_res": Setting(32, 1, 256, "cells per side of the density and direction textures (they tile space)"),
     "seed": Setting(0, 0, 2**31 - 1, "seed of the density texture"),
@@ -157,8 +158,10 @@ def particle_radiance(gs: Glow, sl: ShadowedLights, c: wp.vec3, normal: wp.vec3,
             wi = wp.where(dist > 0.0, to / wp.max(dist, 1.0e-30), normal)
             if light.kind == SPOT:
                 strength = light.strength * spot_falloff(light, wp.dot(-wi, light.direction))
-            inv_d2 = wp.where(dist > 8.0 * r_ball, 1.0 / wp.max(dist * dist, 1.0e-30),
-                              ball_mean_inverse_square(r_ball, dist))  # beyond 8 r the mean is 1/D^2 within 0.3%
+            if dist > 8.0 * r_ball:  # the ball's mean of 1/D^2 is 1/D^2 within 0.3% there
+                inv_d2 = 1.0 / (dist * dist)
+            else:
+                inv_d2 = ball_mean_inverse_square(r_ball, dist)
             dist = wp.max(dist, r_ball)
         if strength[0] > 0.0 or strength[1] > 0.0 or strength[2] > 0.0:
             v = shadow_visibility(sl.maps[l], sl.depth, c)
