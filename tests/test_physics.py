@@ -68,9 +68,11 @@ def eval_airlight(table: wp.array2d(dtype=float), d: wp.array(dtype=wp.vec3), le
     out[i] = airlight.airlight(table, wp.vec3(0.0), d[i], length, light_pos, wp.vec3(1.0), sigma_t, wp.vec3(1.0))
 
 
-def make_phase(kind, g=0.0, table=None):
+def make_phase(kind, g=0.0, table=None, g_d=0.0, alpha=0.0, w_d=0.0):
+    """The kernel struct; a table is laid out as ``phase_struct`` does: n values, then their CDF."""
     ph = phase.Phase()
-    ph.kind, ph.g, ph.offset, ph.n = phase.KINDS[kind], g, 0, 0 if table is None else len(table)
+    ph.kind, ph.g, ph.offset, ph.n = phase.KINDS[kind], g, 0, 0 if table is None else len(table) // 2
+    ph.g_d, ph.alpha, ph.w_d = g_d, alpha, w_d
     return ph
 
 
@@ -83,7 +85,8 @@ def phase_values(device, ph, table, mu):
 
 def hg_table():
     mu = np.linspace(-1, 1, 257)
-    return phase.tabulate((1 - 0.25) / (1 + 0.25 - mu) ** 1.5 + 0.3)
+    values = phase.tabulate((1 - 0.25) / (1 + 0.25 - mu) ** 1.5 + 0.3)
+    return np.concatenate([values, phase.tabulated_cdf(values)])
 
 
 CASES = [("isotropic", 0.0), ("rayleigh", 0.0)] + [

@@ -11,6 +11,18 @@ that follows a ray ``d`` backwards and continues along ``d'``, cos_theta = dot(d
 | cornette_shanks  | g in (-1,1)| 3 (1 - g^2)(1 + cos^2) / (8 pi (2 + g^2)(1 + g^2 - 2 g cos)^(3/2)) |
 | rayleigh         |            | 3 (1 + cos^2) / (16 pi)                                 |
 | tabulated        | table      | piecewise-linear in cos_theta on a uniform grid over [-1, 1] |
+| hg_draine        | g (= g_HG), g_d in (0, 1), alpha > 0, w_d in [0, 1] | (1 - w_d) HG(g_HG) + w_d Draine(g_d, alpha) |
+
+Draine(g, alpha) = (1 - g^2)(1 + alpha cos^2) / (4 pi (1 + alpha (1 + 2 g^2) / 3)(1 + g^2 - 2 g cos)^(3/2))
+(Draine, ApJ 598, 2003). The HG + Draine blend is Jendersie & d'Eon, "An Approximate Mie
+Scattering Function for Fog and Cloud Rendering", SIGGRAPH 2023 Talks: their fit of the four
+parameters to water droplets of diameter 5-50 um lives with the scene loader
+(``warpvol.scene.mie.jendersie_deon``), which fills this struct. Mie phase functions of a droplet
+size distribution (``warpvol.scene.mie.mie_table``) arrive here as a ``tabulated`` kind.
+
+A tabulated phase occupies 2 n entries of the shared table array: its n values, then their CDF
+(trapezoid, 0 at cos = -1, 1 at cos = 1), so sampling is a binary search; a forward peak needs
+tens of thousands of entries on the uniform cos grid, which a linear scan would walk per sample.
 
 References: Henyey & Greenstein, ApJ 1941; Cornette & Shanks, Applied Optics 1992;
 pbrt-v4 ``util/scattering.h`` for the sampling routine. In float32 the HG lobe for
@@ -28,19 +40,24 @@ HG = wp.constant(1)
 CORNETTE_SHANKS = wp.constant(2)
 RAYLEIGH = wp.constant(3)
 TABULATED = wp.constant(4)
+HG_DRAINE = wp.constant(5)
 
 #: Scene-file name -> kind id.
-KINDS = {"isotropic": 0, "hg": 1, "cornette_shanks": 2, "rayleigh": 3, "tabulated": 4}
+KINDS = {"isotropic": 0, "hg": 1, "cornette_shanks": 2, "rayleigh": 3, "tabulated": 4, "hg_draine": 5}
 
 
 @wp.struct
 class Phase:
-    """A phase function: its kind, asymmetry g, and (tabulated) where its table lies."""
+    """A phase function: its kind, asymmetry g, (tabulated) where its table lies, and
+    (hg_draine) the Draine lobe's g_d, alpha and weight w_d; g is then the HG lobe's g."""
 
     kind: int
     g: float
     offset: int  # first entry of the table in the shared table array
-    n: int  # entries: values at cos = -1 + 2 i / (n - 1)
+    n: int  # values at cos = -1 + 2 i / (n - 1), then their CDF at the same cosines
+    g_d: float
+    alpha: float
+    w_d: float
 
 
 @wp.func
@@ -81,6 +98,19 @@ def rayleigh(cos_theta: float) -> float:
 
 
 @wp.func
+def draine(g: float, alpha: float, cos_theta: float) -> float:
+    """Draine's phase function: HG times (1 + alpha cos^2), renormalised (Draine 2003)."""
+    c = wp.clamp(cos_theta, -1.0, 1.0)
+    return henyey_greenstein(g, c) * (1.0 + alpha * c * c) / (1.0 + alpha * (1.0 + 2.0 * g * g) / 3.0)
+
+
+@wp.func
+def hg_draine(ph: Phase, cos_theta: float) -> float:
+    """Jendersie & d'Eon 2023: (1 - w_d) HG(g) + w_d Draine(g_d, alpha)."""
+    return (1.0 - ph.w_d) * henyey_greenstein(ph.g, cos_theta) + ph.w_d * draine(ph.g_d, ph.alpha, cos_theta)
+
+
+@wp.func
 def tabulated(table: wp.array(dtype=float), offset: int, n: int, cos_theta: float) -> float:
     x = wp.clamp((cos_theta + 1.0) * 0.5 * float(n - 1), 0.0, float(n - 1))
     i = wp.min(int(x), n - 2)
@@ -99,6 +129,8 @@ def phase_eval(ph: Phase, table: wp.array(dtype=float), cos_theta: float) -> flo
         return rayleigh(cos_theta)
     if ph.kind == TABULATED:
         return tabulated(table, ph.offset, ph.n, cos_theta)
+    if ph.kind == HG_DRAINE:
+        return hg_draine(ph, cos_theta)
     return INV_4PI
 
 
@@ -120,28 +152,61 @@ def sample_hg_cos(g: float, u: float) -> float:
 
 
 @wp.func
+def sample_draine_cos(g: float, alpha: float, u: float) -> float:
+    """Exact inverse CDF of Draine's distribution of cos_theta, for 0 < g < 1 and alpha > 0.
+
+    The CDF, written in t = sqrt(1 + g^2 - 2 g cos), is a depressed quartic in t; this is its
+    closed-form root as given by Jendersie & d'Eon 2023 (supplemental code, ``sampleDraineCos``).
+    The root cancels heavily: in float32 it is off by up to 4e-3 in cos at alpha = 100 (1e-4 at
+    the fit's alpha ~ 27), so it is evaluated in float64 (a few dozen operations per sample)."""
+    x = wp.float64(u)
+    gg = wp.float64(g)
+    a = wp.float64(alpha)
+    one = wp.float64(1.0)
+    g2 = gg * gg
+    g4 = g2 * g2
+    t1a = a * (g4 - one)
+    a1mg2 = a * (one - g2)
+    t2 = wp.float64(1296.0) * (one - g2) * a1mg2 * t1a * (wp.float64(4.0) * g2 + a * (one + g2) * (one + g2))
+    t3 = wp.float64(3.0) * g2 * (one + gg * (wp.float64(2.0) * x - one)) + a * (
+        wp.float64(2.0) + g2 + g2 * gg * (one + wp.float64(2.0) * g2) * (wp.float64(2.0) * x - one))
+    t4a = wp.float64(432.0) * t1a * t1a * t1a + t2 + wp.float64(432.0) * a1mg2 * t3 * t3
+    t4b = wp.float64(-144.0) * a * g2 * (one - g2) * (one - g2)
+    t4 = t4a + wp.sqrt(wp.max(t4a * t4a - wp.float64(4.0) * t4b * t4b * t4b, wp.float64(0.0)))
+    t4p3 = wp.pow(wp.max(t4, wp.float64(1.0e-300)), wp.float64(1.0 / 3.0))
+    cbrt2 = wp.float64(1.2599210498948732)
+    t6 = (wp.float64(2.0) * t1a + wp.float64(48.0) * cbrt2 * t4b / wp.float64(144.0) / t4p3
+          + t4p3 / (wp.float64(3.0) * cbrt2)) / a1mg2
+    t5 = wp.float64(6.0) * (one + g2) + t6
+    sq5 = wp.sqrt(wp.max(t5, wp.float64(0.0)))
+    inner = wp.float64(6.0) * (one + g2) + wp.float64(8.0) * t3 / (a1mg2 * sq5) - t6
+    t = wp.float64(0.5) * (-sq5 + wp.sqrt(wp.max(inner, wp.float64(0.0))))
+    return wp.clamp(float((one + g2 - t * t) / (wp.float64(2.0) * gg)), -1.0, 1.0)
+
+
+@wp.func
 def sample_tabulated_cos(table: wp.array(dtype=float), offset: int, n: int, u: float) -> float:
-    """Exact inverse CDF of the piecewise-linear table (bins by area, then the linear piece)."""
+    """Exact inverse CDF of the piecewise-linear table: binary search of the stored CDF for the
+    bin, then the root of the linear piece within it."""
+    cdf = offset + n
+    lo = int(0)
+    hi = n - 1
+    while hi - lo > 1:  # invariant: cdf[lo] <= u < cdf[hi] (or u past the last value)
+        mid = (lo + hi) // 2
+        if table[cdf + mid] <= u:
+            lo = mid
+        else:
+            hi = mid
     h = 2.0 / float(n - 1)
-    total = float(0.0)
-    for i in range(n - 1):
-        total += 0.5 * (table[offset + i] + table[offset + i + 1]) * h
-    target = u * total
-    acc = float(0.0)
-    for i in range(n - 1):
-        a = table[offset + i]
-        b = table[offset + i + 1]
-        area = 0.5 * (a + b) * h
-        if acc + area >= target or i == n - 2:
-            r = wp.clamp((target - acc) / h, 0.0, 0.5 * (a + b))  # solve a s + (b - a) s^2 / 2 = r
-            s = float(0.0)
-            if wp.abs(b - a) < 1.0e-6 * (a + b):
-                s = r / wp.max(a, 1.0e-30)
-            else:
-                s = (-a + wp.sqrt(wp.max(a * a + 2.0 * (b - a) * r, 0.0))) / (b - a)
-            return wp.clamp(-1.0 + (float(i) + wp.clamp(s, 0.0, 1.0)) * h, -1.0, 1.0)
-        acc += area
-    return 1.0
+    a = table[offset + lo]
+    b = table[offset + lo + 1]
+    r = wp.clamp((u - table[cdf + lo]) / (TWO_PI * h), 0.0, 0.5 * (a + b))  # solve a s + (b - a) s^2 / 2 = r
+    s = float(0.0)
+    if wp.abs(b - a) < 1.0e-6 * (a + b):
+        s = r / wp.max(a, 1.0e-30)
+    else:
+        s = 2.0 * r / (a + wp.sqrt(wp.max(a * a + 2.0 * (b - a) * r, 0.0)))  # the root without cancellation
+    return wp.clamp(-1.0 + (float(lo) + wp.clamp(s, 0.0, 1.0)) * h, -1.0, 1.0)
 
 
 @wp.func
@@ -168,14 +233,20 @@ def direction_from_cos(d: wp.vec3, cos_theta: float, u: float) -> wp.vec3:
 def phase_sample(ph: Phase, table: wp.array(dtype=float), d: wp.vec3, u1: float, u2: float):
     """Sample d' given the travel direction d. Returns (d', weight = p / pdf, pdf).
 
-    HG, isotropic and tabulated are sampled exactly (weight 1). Cornette-Shanks is sampled
-    with HG of the same g, Rayleigh uniformly: their weights are bounded by 3/2.
+    HG, isotropic, tabulated and hg_draine are sampled exactly (weight 1; hg_draine picks its
+    HG lobe with probability 1 - w_d, else its Draine lobe, reusing u1). Cornette-Shanks is
+    sampled with HG of the same g, Rayleigh uniformly: their weights are bounded by 3/2.
     """
     cos_theta = float(0.0)
     if ph.kind == HG or ph.kind == CORNETTE_SHANKS:
         cos_theta = sample_hg_cos(ph.g, u1)
     elif ph.kind == TABULATED:
         cos_theta = sample_tabulated_cos(table, ph.offset, ph.n, u1)
+    elif ph.kind == HG_DRAINE:
+        if u1 < ph.w_d:
+            cos_theta = sample_draine_cos(ph.g_d, ph.alpha, u1 / ph.w_d)
+        else:
+            cos_theta = sample_hg_cos(ph.g, (u1 - ph.w_d) / (1.0 - ph.w_d))
     else:
         cos_theta = 1.0 - 2.0 * u1
     wi = direction_from_cos(d, cos_theta, u2)
@@ -184,6 +255,8 @@ def phase_sample(ph: Phase, table: wp.array(dtype=float), d: wp.vec3, u1: float,
         pdf = henyey_greenstein(ph.g, cos_theta)
     elif ph.kind == TABULATED:
         pdf = tabulated(table, ph.offset, ph.n, cos_theta)
+    elif ph.kind == HG_DRAINE:
+        pdf = hg_draine(ph, cos_theta)
     p = phase_eval(ph, table, cos_theta)
     return wi, p / pdf, pdf
 
@@ -201,13 +274,24 @@ def tabulate(values: np.ndarray) -> np.ndarray:
     return (v / integral).astype(np.float32)
 
 
+def tabulated_cdf(values: np.ndarray) -> np.ndarray:
+    """The CDF that ``sample_tabulated_cos`` searches: 2 pi times the trapezoid integral of the
+    normalised ``values`` from cos = -1 to each node, accumulated in float64."""
+    v = np.asarray(values, np.float64)
+    h = 2.0 / (v.size - 1)
+    cdf = np.concatenate([[0.0], np.cumsum(np.pi * h * (v[1:] + v[:-1]))])
+    return (cdf / cdf[-1]).astype(np.float32)
+
+
 def phase_struct(phase, offset: int = 0) -> tuple[Phase, np.ndarray]:
-    """A scene ``Phase`` as the kernel struct and its table (empty unless tabulated), the
-    table placed at ``offset`` of a shared table array."""
+    """A scene ``Phase`` as the kernel struct and its table (empty unless tabulated: the n
+    normalised values, then their CDF), the table placed at ``offset`` of a shared table array."""
     ph = Phase()
     ph.kind, ph.g, ph.offset, ph.n = KINDS[phase.type], float(phase.g), offset, 0
+    ph.g_d, ph.alpha, ph.w_d = float(phase.g_d), float(phase.alpha), float(phase.w_d)
     table = np.zeros(0, np.float32)
     if phase.values is not None:
-        table = tabulate(phase.values)
-        ph.n = len(table)
+        values = tabulate(phase.values)
+        table = np.concatenate([values, tabulated_cdf(values)])
+        ph.n = len(values)
     return ph, table

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from . import shapes
+from . import mie, shapes
 from .model import (
     Camera,
     GridMedium,
@@ -142,7 +142,7 @@ def _array(t: _Table, name: str, value, shape_tail: tuple, what: str) -> np.ndar
     try:
         a = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
-        t.fail(t.key(name), f"cannot be read as numbers", what)
+        t.fail(t.key(name), "cannot be read as numbers", what)
     if a.ndim != 1 + len(shape_tail) or tuple(a.shape[1:]) != shape_tail:
         if not (a.size == 0 and shape_tail):
             t.fail(t.key(name), f"has shape {a.shape}", what)
@@ -235,7 +235,7 @@ def _phase(data, where, source) -> Phase:
     if data is None:
         return Phase()
     t = _Table(data, where, source)
-    kind = t.string("type", choices=["isotropic", "hg", "cornette_shanks", "rayleigh", "tabulated"])
+    kind = t.string("type", choices=["isotropic", "hg", "cornette_shanks", "rayleigh", "tabulated", "mie", "hg_draine"])
     ph = Phase(kind)
     if kind in ("hg", "cornette_shanks"):
         ph.g = t.number("g", 0.0, -1.0, 1.0, lo_open=True, hi_open=True)
@@ -244,8 +244,41 @@ def _phase(data, where, source) -> Phase:
         if v.size < 2 or np.any(v < 0) or v.sum() <= 0:
             t.fail(t.key("values"), "needs >= 2 non-negative values, not all zero", "list of >= 2 non-negative numbers")
         ph.values = v
+    if kind == "mie":
+        ph = _mie_phase(t)
+    if kind == "hg_draine":
+        _hg_draine_phase(t, ph)
     t.finish()
     return ph
+
+
+_MIE_LARGEST_UM = 60.0  # the cross-section weighted median whose forward peak mie.MAX_ENTRIES still resolves
+
+
+def _mie_phase(t: _Table) -> Phase:
+    """Log-normal water droplets through Mie theory, as a tabulated phase (``mie.mie_table``)."""
+    d = t.number("median_diameter_um", lo=0.1, hi=_MIE_LARGEST_UM)
+    sigma = t.number("sigma", lo=0.0, hi=0.5)
+    index = t.number("refractive_index", mie.WATER_INDEX, 1.0, 2.0, lo_open=True)
+    if d * math.exp(2.0 * sigma * sigma) > _MIE_LARGEST_UM:
+        t.fail(t.key("sigma"), f"median_diameter_um x exp(2 sigma^2) = {d * math.exp(2 * sigma * sigma):.4g} um, the "
+               "cross-section weighted median, has a forward peak narrower than the largest table",
+               f"median_diameter_um x exp(2 sigma^2) <= {_MIE_LARGEST_UM:g} um")
+    return Phase("tabulated", values=mie.mie_table(d, sigma, index).mean.astype(np.float32))
+
+
+def _hg_draine_phase(t: _Table, ph: Phase) -> None:
+    """Jendersie & d'Eon 2023: the fit at ``diameter_um``, or the four parameters given."""
+    explicit = [k for k in ("g_hg", "g_d", "alpha", "w_d") if k in t.data]
+    if explicit and "diameter_um" in t.data:
+        t.fail(t.key(explicit[0]), "given with diameter_um", "either diameter_um or all of g_hg, g_d, alpha, w_d")
+    if explicit:
+        fit = mie.HGDraine(g_hg=t.number("g_hg", lo=-1.0, hi=1.0, lo_open=True, hi_open=True),
+                           g_d=t.number("g_d", lo=0.001, hi=0.99), alpha=t.number("alpha", lo=0.001, hi=100.0),
+                           w_d=t.number("w_d", lo=0.0, hi=1.0))
+    else:
+        fit = mie.jendersie_deon(t.number("diameter_um", lo=mie.FIT_RANGE_UM[0], hi=mie.FIT_RANGE_UM[1]))
+    ph.g, ph.g_d, ph.alpha, ph.w_d = fit.g_hg, fit.g_d, fit.alpha, fit.w_d
 
 
 def _medium(data, where, source, base_dir) -> Medium:

@@ -38,9 +38,12 @@ class Light:
 
 @dataclass
 class Phase:
-    type: str = "isotropic"  # isotropic | hg | cornette_shanks | rayleigh | tabulated
-    g: float = 0.0
+    type: str = "isotropic"  # isotropic | hg | cornette_shanks | rayleigh | tabulated | hg_draine
+    g: float = 0.0  # hg_draine: g of the HG lobe
     values: np.ndarray | None = None  # tabulated: p on a uniform cos grid over [-1, 1]
+    g_d: float = 0.0  # hg_draine: the Draine lobe's g, alpha and weight (Jendersie & d'Eon 2023)
+    alpha: float = 0.0
+    w_d: float = 0.0
 
 
 @dataclass
