@@ -126,8 +126,8 @@ def check_particle_scene(technique: str, scene: Scene) -> None:
     if bad or not scene.media:
         raise SettingsError(f"{technique}: renders particle media only (scene {scene.name!r} has "
                             f"{', '.join(bad) if bad else 'no media'}; allowed: type = \"particles\")")
-    phases = {(m.phase.type, m.phase.g, None if m.phase.values is None else m.phase.values.tobytes())
-              for m in scene.media}
+    phases = {(m.phase.type, m.phase.g, m.phase.g_d, m.phase.alpha, m.phase.w_d,
+               None if m.phase.values is None else m.phase.values.tobytes()) for m in scene.media}
     if len(phases) > 1:
         raise SettingsError(f"{technique}: the particle media must share one phase function (found {len(phases)})")
 
