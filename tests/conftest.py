@@ -51,3 +51,35 @@ def pixel_rays(cam):
     sx, sy = 2 * px / cam["width"] - 1, 1 - 2 * py / cam["height"]
     d = f + sx[..., None] * r * th * cam["width"] / cam["height"] + sy[..., None] * u * th
     return o, d / np.linalg.norm(d, axis=-1, keepdims=True)
+
+
+def sky_over_ball(cam, L, sigma):
+    """Single scattering of a uniform sky L in a homogeneous ball (radius 1 at the origin,
+    extinction sigma, albedo 1, isotropic), per pixel centre (H x W x 3):
+    L [exp(-sigma chord) + int sigma e^(-sigma t) <exp(-sigma l(x, w))>_w dt], l the
+    distance from x to the ball's edge along w; 48 Gauss points along the ray and 4096
+    Fibonacci directions (error below 1e-4)."""
+    o, d = pixel_rays(cam)
+    d = d.reshape(-1, 3)
+    k = np.arange(4096) + 0.5
+    z = 1 - 2 * k / 4096
+    phi = np.pi * (3 - np.sqrt(5)) * k
+    w = np.stack([np.sqrt(1 - z * z) * np.cos(phi), np.sqrt(1 - z * z) * np.sin(phi), z], 1)
+    xg, wg = np.polynomial.legendre.leggauss(48)
+    expected = []
+    for dr in d:
+        b = o @ dr
+        disc = b * b - (o @ o - 1.0)
+        if disc <= 0:
+            expected.append(L)
+            continue
+        t0, t1 = -b - np.sqrt(disc), -b + np.sqrt(disc)
+        t = t0 + (t1 - t0) * 0.5 * (xg + 1)
+        x = o + t[:, None] * dr
+        bx = x @ w.T  # (t, dirs): exit distance along w from inside the unit ball
+        ell = -bx + np.sqrt(bx * bx - ((x * x).sum(1) - 1.0)[:, None])
+        inner = np.exp(-sigma * ell).mean(1)
+        ss = np.sum(0.5 * (t1 - t0) * wg * sigma * np.exp(-sigma * (t - t0)) * inner)
+        expected.append(L * (np.exp(-sigma * (t1 - t0)) + ss))
+    expected = np.repeat(np.asarray(expected).reshape(cam["height"], cam["width"], 1), 3, axis=2)
+    return expected

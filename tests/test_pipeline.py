@@ -145,3 +145,22 @@ def test_a_stage_declaring_unknown_inputs_is_an_error():
     t = _Counting(wv.load_scene("fog-box"), [("a", dict(reads=("weather",)))])
     with pytest.raises(ValueError, match=r"unknown inputs \['weather'\]"):
         Pipeline(t).run()
+
+
+def test_a_frame_says_what_its_technique_leaves_out():
+    """The sky (a non-black background) is a light: raymarch gathers it unless sky_samples = 0,
+    light_shafts leaves it out and says so; single-scattering techniques name multiple
+    scattering; the reference names the orders beyond max_bounces, and nothing at -1."""
+    scene = {"name": "sky", "background": [0.2, 0.3, 0.5],
+             "camera": {"origin": [0, 0, 4], "target": [0, 0, 0], "fov_y": 40.0, "width": 4, "height": 3},
+             "lights": [{"type": "directional", "direction": [0, -1, 0], "irradiance": 1.0}],
+             "media": [{"type": "homogeneous", "shape": "sphere", "radius": 1.0, "sigma_t": 0.5, "albedo": 0.9}]}
+    sky = "the sky's light (the background) scattered in the media or reflected by surfaces"
+    assert wv.render(scene, "raymarch", device="cpu").leaves_out == ["multiple scattering"]
+    assert sky in wv.render(scene, "raymarch", device="cpu", sky_samples=0).leaves_out
+    assert sky in wv.render(scene, "light_shafts", device="cpu").leaves_out
+    assert wv.render(scene, "reference", device="cpu", spp=1).leaves_out == []
+    assert wv.render(scene, "reference", device="cpu", spp=1, max_bounces=1).leaves_out == [
+        "light scattered more than 1 time (max_bounces = 1)"]
+    scene["background"] = [0.0, 0.0, 0.0]
+    assert wv.render(scene, "light_shafts", device="cpu").leaves_out == ["multiple scattering"]

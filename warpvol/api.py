@@ -114,7 +114,7 @@ class Renderer:
         t = self._technique
         stages = self._pipeline.run()
         cam = t.scene.camera
-        return Frame(t.output(), (cam.height, cam.width), t.NAME, t.device, dict(t.settings), stages)
+        return Frame(t.output(), (cam.height, cam.width), t.NAME, t.device, dict(t.settings), stages, t.leaves_out())
 
 
 def render(scene, technique: str = "reference", device: str | None = None, progress: bool = False, **settings) -> Frame:

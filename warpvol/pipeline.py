@@ -115,6 +115,22 @@ class Technique:
     def output(self):
         raise NotImplementedError
 
+    #: What the technique's model leaves out of the physical answer (all orders of scattering
+    #: of every light, the sky included), e.g. "multiple scattering".
+    LEAVES_OUT: tuple[str, ...] = ()
+
+    def leaves_out(self) -> list[str]:
+        """``LEAVES_OUT``, and the sky's light where the scene has a sky the technique does not
+        gather (``sky_samples`` = 0, or no such setting)."""
+        out = list(self.LEAVES_OUT)
+        sky = any(c > 0.0 for c in self.scene.background) and bool(self.scene.media)
+        if sky and self.settings.get("sky_samples", 0) == 0 and self.GATHERS_SKY is not True:
+            out.append("the sky's light (the background) scattered in the media or reflected by surfaces")
+        return out
+
+    #: True: the technique gathers the sky's light whatever its settings (e.g. by following paths).
+    GATHERS_SKY: bool = False
+
     def arrays(self, for_view: bool = False, resolution: int = 128) -> dict:
         """Intermediate arrays of the last frame, as numpy, for looking inside (``viz``).
 
@@ -133,7 +149,8 @@ class Frame:
     """
 
     def __init__(self, output, shape: tuple[int, int], technique: str, device: str, settings: dict,
-                 stages: dict[str, StageRun]):
+                 stages: dict[str, StageRun], leaves_out: list[str] | None = None):
+        self.leaves_out = list(leaves_out or [])  # what the technique's model leaves out of the physics
         self._output = output
         self._image = None
         self.shape = shape

@@ -55,6 +55,12 @@ def pinhole(camera: Camera) -> PinholeCamera:
 
 def light_array(scene, device) -> wp.array:
     """The scene's lights as an array of ``Light`` structs."""
+    out = light_structs(scene)
+    return wp.array(out, dtype=Light, device=device) if out else wp.empty(0, dtype=Light, device=device)
+
+
+def light_structs(scene) -> list:
+    """The scene's lights as ``Light`` structs (host side)."""
     out = []
     for light in scene.lights:
         s = Light()
@@ -65,7 +71,7 @@ def light_array(scene, device) -> wp.array:
         s.cos_inner = math.cos(math.radians(light.inner_angle))
         s.cos_outer = math.cos(math.radians(light.outer_angle))
         out.append(s)
-    return wp.array(out, dtype=Light, device=device) if out else wp.empty(0, dtype=Light, device=device)
+    return out
 
 
 def sky_lights(background, count: int, device) -> wp.array:
@@ -74,9 +80,15 @@ def sky_lights(background, count: int, device) -> wp.array:
     strength ``background``: a technique sums p_k E_k T_k over them and divides by sum p_k
     (or by sum cos_k at a surface), which is exact for an unoccluded point. None when the sky
     is black or ``count`` is 0."""
+    out = sky_light_structs(background, count)
+    return wp.array(out, dtype=Light, device=device) if out else None
+
+
+def sky_light_structs(background, count: int) -> list:
+    """``sky_lights`` as host-side ``Light`` structs ([] for a black sky or count 0)."""
     sky = np.asarray(background, np.float64)
     if count <= 0 or not np.any(sky > 0.0):
-        return None
+        return []
     k = np.arange(count) + 0.5
     z = 1.0 - 2.0 * k / count
     phi = np.pi * (3.0 - np.sqrt(5.0)) * k
@@ -90,7 +102,7 @@ def sky_lights(background, count: int, device) -> wp.array:
         light.strength = wp.vec3(*sky)
         light.cos_inner = light.cos_outer = 1.0
         out.append(light)
-    return wp.array(out, dtype=Light, device=device)
+    return out
 
 
 def shadow_map_structs(scene: Scene, res: int, bias: float, occluders: bool) -> list:

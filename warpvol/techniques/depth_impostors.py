@@ -404,6 +404,7 @@ class DepthImpostors(Technique):
 
     NAME = NAME
     SETTINGS = SETTINGS
+    LEAVES_OUT = ("multiple scattering",)
 
     def __init__(self, scene, device, settings, progress=False):
         super().__init__(scene, device, settings, progress)

@@ -467,6 +467,8 @@ class IlluminationNetwork(Technique):
 
     NAME = NAME
     SETTINGS = SETTINGS
+    LEAVES_OUT = ()
+    GATHERS_SKY = True
 
     def __init__(self, scene, device, settings, progress=False):
         super().__init__(scene, device, settings, progress)

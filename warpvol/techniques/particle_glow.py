@@ -46,6 +46,9 @@ Surfaces are lit directly through the shadow maps (normal offset).
 Stages: medium, surfaces, lights (uploads), textures (density and directions), tables
 (G_0, and G_n for the specular term), shadow_maps (surfaces and lights; not built without
 surfaces), march.
+
+Leaves out (``frame.leaves_out``): multiple scattering, and the sky's light (the
+background) scattered in the medium or reflected by surfaces.
 """
 
 from __future__ import annotations
@@ -264,6 +267,7 @@ class ParticleGlow(Technique):
 
     NAME = NAME
     SETTINGS = SETTINGS
+    LEAVES_OUT = ("multiple scattering (the glow imitates some of it)",)
 
     def __init__(self, scene, device, settings, progress=False):
         super().__init__(scene, device, settings, progress)

@@ -7,7 +7,11 @@ T S (1 - exp(-sigma_t dt)) / sigma_t, the exact integral over a step of constant
 coefficients (Hillaire 2015), so thin and thick steps both conserve energy. Light reaches
 a point through the media (homogeneous media exactly, heterogeneous ones marched with
 ``shadow_steps`` midpoint steps) and past surfaces (a shadow ray). Surfaces are lit
-directly; no light scatters more than once.
+directly; no light scatters more than once. The sky (the background radiance) is a light
+too: its single scattering is gathered at every step from ``sky_samples`` directions over
+the sphere (``upload.sky_lights``), sum_k sigma_s p_k T_k / sum_k sigma_s p_k times
+sigma_s L_sky, and on surfaces as pi f L_sky sum_k cos_k T_k / sum_k cos_k; both exact where
+nothing shadows the point, and the error of the shadowed part falls as the directions grow.
 
 With ``shadow_grid`` = n > 0, the transmittance from each light is baked once on an n^3
 lattice over the heterogeneous media (stage ``light_volume``, which reads the medium and
@@ -29,13 +33,14 @@ from ..geometry.intersect import inside_box, ray_box
 from ..geometry.mesh import Surfaces, occluded, surface_hit
 from ..geometry.raster import RasterView, view_ray
 from ..media.grid import lattice_trilinear_vec3
-from ..media.volume import Media, in_scatter_at, sigma_t_at
-from ..physics.constants import INF
+from ..media.volume import Media, in_scatter_at, scattering_at, sigma_t_at
+from ..physics.brdf import brdf_eval
+from ..physics.constants import INF, PI, RAY_EPS
 from ..physics.lights import Light, light_incident
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Setting, SettingsError, Stage, Technique
 from ..shading import light_transmittance, marched_optical_depth, surface_direct
-from ..upload import SceneUploads, pinhole
+from ..upload import SceneUploads, light_structs, pinhole, sky_light_structs
 
 NAME = "raymarch"
 SETTINGS = {
@@ -43,6 +48,8 @@ SETTINGS = {
     "step_length": Setting(0.0, 0.0, 1.0e6, "step length in scene units; 0 = use steps"),
     "shadow_steps": Setting(32, 1, 1 << 20, "steps along each ray toward a light, heterogeneous media"),
     "shadow_grid": Setting(0, 0, 512, "nodes per axis of the baked light-transmittance volume; 0 = march to the lights"),
+    "sky_samples": Setting(16, 0, 4096, "directions the sky's light (the background) is gathered from at every step "
+                                        "and surface point; 0: leave it out"),
 }
 
 
@@ -70,10 +77,65 @@ def bake_light_transmittance(offset: int, m: Media, lights: wp.array(dtype=Light
     out[tid] = transmittance_rgb(marched_optical_depth(m, x, wi, 0.0, dist, st.shadow_steps))
 
 
+@wp.func
+def light_at(m: Media, s: Surfaces, l: int, x: wp.vec3, wi: wp.vec3, dist: float, st: MarchSettings,
+             baked: wp.array(dtype=wp.vec3)) -> wp.vec3:
+    """Transmittance from light l (the scene's lights, then the sky's directions, as baked) to
+    x: past the surfaces, and through the media marched or read from the baked lattice."""
+    rng = wp.uint32(0)  # unused: transmittance is marched, not estimated
+    if st.shadow_grid > 0 and inside_box(x, st.grid_lo, st.grid_hi):
+        if occluded(s, x, wi, dist):
+            return wp.vec3(0.0)
+        g = st.shadow_grid
+        return lattice_trilinear_vec3(baked, l * g * g * g, g, st.grid_lo, st.grid_hi, x)
+    return light_transmittance(m, s, x, wi, dist, 0, rng, st.shadow_steps)
+
+
+@wp.func
+def sky_in_scatter(m: Media, s: Surfaces, sky: wp.array(dtype=Light), first: int, x: wp.vec3, d: wp.vec3,
+                   radiance: wp.vec3, st: MarchSettings, baked: wp.array(dtype=wp.vec3)) -> wp.vec3:
+    """The sky's light scattered at x toward -d: sigma_s L_sky int p T dw, the integral as
+    sum_k sigma_s p_k T_k / sum_k sigma_s p_k over the sky's directions (baked after the
+    scene's ``first`` lights), exact where nothing shadows x."""
+    num = wp.vec3(0.0)
+    den = wp.vec3(0.0)
+    for k in range(sky.shape[0]):
+        wi = -sky[k].direction
+        ph = in_scatter_at(m, x, wp.dot(d, wi))
+        num += wp.cw_mul(ph, light_at(m, s, first + k, x, wi, INF, st, baked))
+        den += ph
+    mean_t = wp.vec3(num[0] / wp.max(den[0], 1.0e-30), num[1] / wp.max(den[1], 1.0e-30), num[2] / wp.max(den[2], 1.0e-30))
+    return wp.cw_mul(wp.cw_mul(mean_t, scattering_at(m, x)), radiance)
+
+
+@wp.func
+def sky_on_surface(m: Media, s: Surfaces, sky: wp.array(dtype=Light), first: int, p: wp.vec3, n: wp.vec3,
+                   wo: wp.vec3, face: int, radiance: wp.vec3, st: MarchSettings,
+                   baked: wp.array(dtype=wp.vec3)) -> wp.vec3:
+    """The sky's light reflected at p: pi f L_sky sum_k cos_k T_k / sum_k cos_k over the sky's
+    directions above the surface (exact for an unshadowed diffuse surface)."""
+    acc = wp.vec3(0.0)
+    csum = float(0.0)
+    mat = s.material[face]
+    for k in range(sky.shape[0]):
+        wi = -sky[k].direction
+        c = wp.dot(n, wi)
+        if c > 0.0:
+            csum += c
+            acc += c * wp.cw_mul(brdf_eval(mat, n, wo, wi), light_at(m, s, first + k, p + RAY_EPS * n, wi, INF, st,
+                                                                     baked))
+    if csum > 0.0:
+        return wp.cw_mul(acc, radiance) * (PI / csum)
+    return wp.vec3(0.0)
+
+
 @wp.kernel
 def march_single_scattering(offset: int, cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Light),
-                            background: wp.vec3, st: MarchSettings, baked: wp.array(dtype=wp.vec3),
-                            image: wp.array(dtype=wp.vec3)):
+                            sky: wp.array(dtype=Light), background: wp.vec3, st: MarchSettings,
+                            baked: wp.array(dtype=wp.vec3), image: wp.array(dtype=wp.vec3)):
+    """Per pixel: the march over the scene's lights and the sky's directions (``sky``, of
+    radiance ``background``; empty: the sky left out), then the surface or the background,
+    attenuated."""
     tid = wp.tid() + offset
     px = tid % cam.width
     py = tid / cam.width
@@ -98,21 +160,20 @@ def march_single_scattering(offset: int, cam: RasterView, m: Media, s: Surfaces,
                 for l in range(lights.shape[0]):
                     wi, dist, e = light_incident(lights[l], x)
                     if dist > 0.0:
-                        tl = wp.vec3(0.0)
-                        if st.shadow_grid > 0 and inside_box(x, st.grid_lo, st.grid_hi):
-                            if not occluded(s, x, wi, dist):
-                                g = st.shadow_grid
-                                tl = lattice_trilinear_vec3(baked, l * g * g * g, g, st.grid_lo, st.grid_hi, x)
-                        else:
-                            tl = light_transmittance(m, s, x, wi, dist, 0, rng, st.shadow_steps)
+                        tl = light_at(m, s, l, x, wi, dist, st, baked)
                         inscatter += wp.cw_mul(wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e), tl)
+                if sky.shape[0] > 0:
+                    inscatter += sky_in_scatter(m, s, sky, lights.shape[0], x, d, background, st, baked)
                 f = step_integral_rgb(sig, dt)
                 L += wp.cw_mul(wp.cw_mul(tr, inscatter), f)
                 tr = wp.cw_mul(tr, transmittance_rgb(sig * dt))
     if hit:
         nf = wp.where(wp.dot(n, d) < 0.0, n, -n)
         p = o + t_surf * d
-        L += wp.cw_mul(tr, surface_direct(m, s, lights, p, nf, -d, s.material[face], 0, rng, st.shadow_steps))
+        Ls = surface_direct(m, s, lights, p, nf, -d, s.material[face], 0, rng, st.shadow_steps)
+        if sky.shape[0] > 0:
+            Ls += sky_on_surface(m, s, sky, lights.shape[0], p, nf, -d, face, background, st, baked)
+        L += wp.cw_mul(tr, Ls)
     else:
         L += wp.cw_mul(tr, background)
     image[tid] = L
@@ -123,6 +184,7 @@ class Raymarch(Technique):
 
     NAME = NAME
     SETTINGS = SETTINGS
+    LEAVES_OUT = ("multiple scattering",)
 
     def __init__(self, scene, device, settings, progress=False):
         super().__init__(scene, device, settings, progress)
@@ -147,11 +209,20 @@ class Raymarch(Technique):
     def _bakes(self) -> bool:
         """A baked volume pays only where transmittance is marched: heterogeneous media, some light."""
         scene = self.scene
-        return self.settings["shadow_grid"] > 0 and bool(scene.lights) and any(m.type != "homogeneous" for m in scene.media)
+        lit = bool(scene.lights) or bool(self._sky())
+        return self.settings["shadow_grid"] > 0 and lit and any(m.type != "homogeneous" for m in scene.media)
+
+    def _sky(self) -> list:
+        return sky_light_structs(self.scene.background, self.settings["sky_samples"]) if self.scene.media else []
+
+    def _array(self, structs: list) -> wp.array:
+        return wp.array(structs, dtype=Light, device=self.device) if structs else wp.empty(0, dtype=Light,
+                                                                                            device=self.device)
 
     def stages(self):
         return self.uploads.stages() + [
-            Stage("light_volume", self._bake, reads=("medium", "lights"), settings=("shadow_grid", "shadow_steps"),
+            Stage("light_volume", self._bake, reads=("medium", "lights", "background"),
+                  settings=("shadow_grid", "shadow_steps", "sky_samples"),
                   after=("medium", "lights"), needed=self._bakes()),
             Stage("march", self._march, reads=("camera", "background"), settings=tuple(SETTINGS),
                   after=("medium", "surfaces", "lights", "light_volume")),
@@ -159,17 +230,18 @@ class Raymarch(Technique):
 
     def _bake(self):
         st = self._march_settings()
-        count = len(self.scene.lights) * st.shadow_grid**3
+        lights = self._array(light_structs(self.scene) + self._sky())  # baked in this order
+        count = lights.shape[0] * st.shadow_grid**3
         self.baked = wp.empty(count, dtype=wp.vec3, device=self.device)
-        dev.launch(bake_light_transmittance, count, [self.uploads.media.struct, self.uploads.lights, st, self.baked],
-                   self.device)
+        dev.launch(bake_light_transmittance, count, [self.uploads.media.struct, lights, st, self.baked], self.device)
 
     def _march(self):
         scene, u = self.scene, self.uploads
         npix = scene.camera.width * scene.camera.height
         self.image = wp.empty(npix, dtype=wp.vec3, device=self.device)
         dev.launch(march_single_scattering, npix, [camera_view(pinhole(scene.camera)), u.media.struct, u.surfaces,
-                                                   u.lights, wp.vec3(*scene.background), self._march_settings(),
+                                                   u.lights, self._array(self._sky()), wp.vec3(*scene.background),
+                                                   self._march_settings(),
                                                    self.baked, self.image], self.device)
 
     def output(self):

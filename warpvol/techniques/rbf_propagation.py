@@ -47,6 +47,9 @@ fixed-step ray march that reads both (equations 5, 8-10). Stages:
 
 The EV and OPV store RGB (an RGB sigma_t propagates per channel), one OPV entry per light
 and cell; the first medium's albedo and phase function serve the whole volume.
+
+Leaves out (``frame.leaves_out``): multiple scattering, and the sky's light (the
+background) scattered in the medium or reflected by surfaces.
 """
 
 from __future__ import annotations
@@ -381,6 +384,7 @@ class RBFPropagation(Technique):
 
     NAME = NAME
     SETTINGS = SETTINGS
+    LEAVES_OUT = ("multiple scattering",)
 
     def __init__(self, scene, device, settings, progress=False):
         super().__init__(scene, device, settings, progress)

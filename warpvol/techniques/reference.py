@@ -295,6 +295,12 @@ class Reference(Technique):
 
     NAME = NAME
     SETTINGS = SETTINGS
+    LEAVES_OUT = ()
+    GATHERS_SKY = True
+
+    def leaves_out(self) -> list[str]:
+        n = self.settings["max_bounces"]
+        return [f"light scattered more than {n} time{'s' if n != 1 else ''} (max_bounces = {n})"] if n >= 0 else []
 
     def __init__(self, scene, device, settings, progress=False):
         super().__init__(scene, device, settings, progress)
