@@ -437,3 +437,21 @@ def test_peaked_lobe_emission_carries_the_scattered_energy(device):
     want = np.einsum("ndc,nc,d->ncd", alpha, al * direct, c * p)
     np.testing.assert_allclose(E, want, rtol=1e-4, atol=1e-7 * want.max())
     np.testing.assert_allclose(t.light_weight.numpy(), c, rtol=1e-4)
+
+
+def test_a_one_shot_render_is_finished(device, monkeypatch):
+    """``warpvol.render`` iterates to the tolerance (1e-4): against a solution converged to
+    1e-6, the image differs by at most the remaining change summed as a geometric series,
+    tolerance x a / (1 - a) with the contraction a = albedo 0.8 (4e-4), doubled for the
+    image's norm against I's; a Renderer's first frame (the paper's one iteration) is far
+    off. A cap that stops it short warns."""
+    scene = cloud(lights=[SUN])
+    _, fine = converged(scene, device)
+    one_shot = wv.render(scene, "illumination_network", device=device)
+    assert wv.relative_rmse(one_shot.image, fine.image) < 2 * 1e-4 * 0.8 / 0.2
+    first = wv.Renderer(scene, "illumination_network", device=device).render()
+    assert wv.relative_rmse(first.image, fine.image) > 0.05
+    import warpvol.techniques.illumination_network as net
+    monkeypatch.setattr(net, "ONE_SHOT_CAP", 2)
+    with pytest.warns(RuntimeWarning, match="not converged after 2 iterations"):
+        wv.render(scene, "illumination_network", device=device)

@@ -121,6 +121,10 @@ def render(scene, technique: str = "reference", device: str | None = None, progr
     """Render ``scene`` (a Scene, a .toml path, a built-in name or a dict) with ``technique``.
 
     Settings are the technique's (``warpvol.techniques.TECHNIQUES[name].SETTINGS``); an
-    unknown name or an out-of-range value raises before anything runs.
+    unknown name or an out-of-range value raises before anything runs. The image is
+    finished: an iterative technique (illumination_network) iterates until it converges
+    (a ``Renderer`` runs its per-frame iterations instead).
     """
-    return Renderer(scene, technique, device, progress, **settings).render()
+    renderer = Renderer(scene, technique, device, progress, **settings)
+    renderer.technique.one_shot = True  # a finished image: iterative techniques run to convergence
+    return renderer.render()

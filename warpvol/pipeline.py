@@ -131,6 +131,10 @@ class Technique:
     #: True: the technique gathers the sky's light whatever its settings (e.g. by following paths).
     GATHERS_SKY: bool = False
 
+    #: Set by ``warpvol.render``: the frame is the only one, so an iterative technique runs to
+    #: convergence instead of its per-frame iterations (a ``Renderer`` keeps the paper's loop).
+    one_shot: bool = False
+
     def arrays(self, for_view: bool = False, resolution: int = 128) -> dict:
         """Intermediate arrays of the last frame, as numpy, for looking inside (``viz``).
 

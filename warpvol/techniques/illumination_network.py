@@ -77,6 +77,7 @@ entry comes near the float16 limit of 65504.
 
 from __future__ import annotations
 
+import warnings
 from typing import Any
 
 import numpy as np
@@ -97,6 +98,7 @@ from ..pipeline import Setting, SettingsError, Stage, Technique
 from ..upload import SceneUploads, check_particle_scene, particle_cloud, pinhole
 
 NAME = "illumination_network"
+ONE_SHOT_CAP = 2000  # iterations a one-shot render may take to converge
 SETTINGS = {
     "directions": Setting(128, 1, 4096, "sample directions D"),
     "window": Setting(0, 0, 4096, "window resolution M per direction; 0: the paper's rule D (R tau)^2 / pi >= M^2"),
@@ -649,12 +651,21 @@ class IlluminationNetwork(Technique):
         return len(self.scene.lights) * float(self.direct.numpy().max()) * w
 
     def _iterate(self):
+        """The frame's iterations; a one-shot render (``warpvol.render``) iterates until an
+        iteration changes I by under ``tolerance``, at most ``ONE_SHOT_CAP`` times (a warning if
+        it stops there)."""
         s = self.settings
-        for _ in range(s["iterations"]):
+        count = s["iterations"]
+        if self.one_shot and s["tolerance"] > 0.0:
+            count = max(count, ONE_SHOT_CAP)
+        for _ in range(count):
             self.step()
             if s["tolerance"] > 0.0 and self.change < s["tolerance"]:
                 self.converged = True
                 break
+        if self.one_shot and s["tolerance"] > 0.0 and not self.converged and self._n:
+            warnings.warn(f"{NAME}: not converged after {count} iterations (last change {self.change:.3g}, "
+                          f"tolerance {s['tolerance']:.3g}): the image is unfinished", RuntimeWarning, stacklevel=2)
 
     def step(self, measure: bool | None = None) -> float:
         """One iteration of the network; returns (and, with a tolerance, measures) the
