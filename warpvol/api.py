@@ -4,6 +4,9 @@
 from __future__ import annotations
 
 import dataclasses
+import warnings
+
+import numpy as np
 
 from . import device as dev
 from .pipeline import PARTS, Frame, Pipeline, SettingsError, resolve_settings
@@ -117,6 +120,70 @@ class Renderer:
         return Frame(t.output(), (cam.height, cam.width), t.NAME, t.device, dict(t.settings), stages, t.leaves_out())
 
 
+def _check_target(value) -> float:
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and 0.0 < float(value) < 1.0
+    if not ok:
+        raise SettingsError(f"setting target_error={value!r} is out of range (allowed: 0 < target_error < 1; the "
+                            "relative RMSE of the image against the technique's converged answer)")
+    return float(value)
+
+
+def _render_to_target(scene, technique: str, device, progress: bool, target: float, settings: dict) -> Frame:
+    """Raise the technique's quality knob (``Technique.QUALITY``) by doubling until the error
+    estimate is at most ``target`` (see ``render``)."""
+    cls = technique_class(technique)
+    quality = getattr(cls, "QUALITY", None)
+    if quality is None:
+        raise SettingsError(f"{technique}: target_error is not supported yet (supported: "
+                            f"{', '.join(n for n in technique_names() if getattr(technique_class(n), 'QUALITY', None))})")
+    knob, start, top, tied, order = quality
+    if knob in settings:
+        raise SettingsError(f"{technique}: give target_error or {knob}, not both (target_error chooses {knob})")
+    from .metrics import relative_rmse
+
+    if knob == "spp":  # Monte Carlo: the standard error of two independent halves
+        spp = max(1, start // 2)
+        while True:
+            a = render(scene, technique, device, progress, **{**settings, "spp": spp, "seed": 1})
+            b = render(scene, technique, device, progress, **{**settings, "spp": spp, "seed": 2})
+            ia, ib = a.image.astype(np.float64), b.image.astype(np.float64)
+            mean = 0.5 * (ia + ib)
+            estimate = relative_rmse(mean + 0.5 * np.abs(ia - ib), mean)  # the mean's standard error, relative
+            if estimate <= target or 2 * spp >= top:
+                break
+            spp = min(top // 2, int(spp * max(2.0, (estimate / target) ** 2)))
+        out = Frame(mean.astype(np.float32), a.shape, a.technique, a.device, {**a.settings, "spp": 2 * spp},
+                    a.stages, a.leaves_out)
+        out.error_estimate = estimate
+        if estimate > target:
+            warnings.warn(f"{technique}: error estimate {estimate:.3g} above target_error {target:.3g} at {knob} = "
+                          f"{2 * spp} (the most it may use)", RuntimeWarning, stacklevel=3)
+        return out
+    r = Renderer(scene, technique, device, progress, **{**settings, knob: start, **{k: start for k in tied}})
+    r.technique.one_shot = True
+    level, images, frame = start, [], None
+    while True:
+        frame = r.render()
+        images.append(frame.image.astype(np.float64))
+        estimate = float("inf")
+        if len(images) >= 3:
+            d1 = relative_rmse(images[-3], images[-2])
+            d2 = relative_rmse(images[-2], images[-1])
+            # geometric convergence, e_2k = r e_k: what the levels still have to go is d2 r / (1 - r);
+            # r observed, but not below the knob's nominal rate 2^-order (a lucky cancellation)
+            ratio = min(max(d2 / d1 if d1 > 0.0 else 0.0, 0.5**order), 0.95)
+            estimate = d2 * ratio / (1.0 - ratio)
+        if estimate <= target or 2 * level > top:
+            break
+        level *= 2
+        r.update(settings={knob: level, **{k: level for k in tied}})
+    frame.error_estimate = estimate
+    if estimate > target:
+        warnings.warn(f"{technique}: error estimate {estimate:.3g} above target_error {target:.3g} at {knob} = {level} "
+                      f"(the most it may use)", RuntimeWarning, stacklevel=3)
+    return frame
+
+
 def render(scene, technique: str = "reference", device: str | None = None, progress: bool = False, **settings) -> Frame:
     """Render ``scene`` (a Scene, a .toml path, a built-in name or a dict) with ``technique``.
 
@@ -124,7 +191,20 @@ def render(scene, technique: str = "reference", device: str | None = None, progr
     unknown name or an out-of-range value raises before anything runs. The image is
     finished: an iterative technique (illumination_network) iterates until it converges
     (a ``Renderer`` runs its per-frame iterations instead).
+
+    ``target_error`` (0..1): the relative RMSE (``metrics.relative_rmse``) the image may have
+    against the technique's own converged answer (its discretisation, not its model: see
+    ``frame.leaves_out``). The technique's quality knob (``Technique.QUALITY``: raymarch and
+    particle_glow steps, rbf_propagation grid, depth_impostors slices, reference spp) is
+    doubled from its start; the error of the finest image is estimated from the last three
+    levels, assuming geometric convergence (e_2k = r e_k: estimate d2 r / (1 - r) with d the
+    differences of successive levels and r = d2 / d1), or for the reference from two
+    independent halves of the samples. ``frame.error_estimate`` holds it; above the target
+    at the knob's limit, a warning.
     """
+    if "target_error" in settings:
+        target = _check_target(settings.pop("target_error"))
+        return _render_to_target(scene, technique, device, progress, target, settings)
     renderer = Renderer(scene, technique, device, progress, **settings)
     renderer.technique.one_shot = True  # a finished image: iterative techniques run to convergence
     return renderer.render()

@@ -57,7 +57,7 @@ def _parse_set(values: list[str], technique: str) -> tuple[dict, list[str]]:
     settings, overrides = {}, []
     for item in values:
         key, _, value = item.partition("=")
-        if key in spec:
+        if key in spec or key == "target_error":  # target_error: every technique (warpvol.render)
             try:
                 settings[key] = tomllib.loads(f"v = {value}")["v"]
             except tomllib.TOMLDecodeError:
@@ -92,7 +92,11 @@ def cmd_render(args) -> int:
     for out in args.out:
         wv.save_image(out, frame.image, exposure=args.exposure)
     wall = time.perf_counter() - t0
-    print(f"{scene.name}: {args.technique} on {frame.device}, {scene.camera.width}x{scene.camera.height}, "
+    chosen = ""
+    if frame.error_estimate is not None:
+        knob = technique_class(args.technique).QUALITY[0]
+        chosen = f", {knob} = {frame.settings[knob]}, estimated error {frame.error_estimate:.3g}"
+    print(f"{scene.name}: {args.technique} on {frame.device}, {scene.camera.width}x{scene.camera.height}{chosen}, "
           f"{wall:.2f} s -> {', '.join(args.out)}")
     if args.timings:
         for stage, run in frame.stages.items():

@@ -131,6 +131,10 @@ class Technique:
     #: True: the technique gathers the sky's light whatever its settings (e.g. by following paths).
     GATHERS_SKY: bool = False
 
+    #: (knob, first value, largest value, settings tied to it, nominal order p: error ~ knob^-p):
+    #: what ``render(target_error=...)`` doubles; None: target_error is not supported.
+    QUALITY: tuple | None = None
+
     #: Set by ``warpvol.render``: the frame is the only one, so an iterative technique runs to
     #: convergence instead of its per-frame iterations (a ``Renderer`` keeps the paper's loop).
     one_shot: bool = False
@@ -155,6 +159,7 @@ class Frame:
     def __init__(self, output, shape: tuple[int, int], technique: str, device: str, settings: dict,
                  stages: dict[str, StageRun], leaves_out: list[str] | None = None):
         self.leaves_out = list(leaves_out or [])  # what the technique's model leaves out of the physics
+        self.error_estimate: float | None = None  # render(target_error=...): the image's estimated error
         self._output = output
         self._image = None
         self.shape = shape

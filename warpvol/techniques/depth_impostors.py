@@ -404,6 +404,7 @@ class DepthImpostors(Technique):
 
     NAME = NAME
     SETTINGS = SETTINGS
+    QUALITY = ("slices", 2, 512, (), 1)
     LEAVES_OUT = ("multiple scattering",)
 
     def __init__(self, scene, device, settings, progress=False):

@@ -267,6 +267,7 @@ class ParticleGlow(Technique):
 
     NAME = NAME
     SETTINGS = SETTINGS
+    QUALITY = ("steps", 8, 8192, (), 2)
     LEAVES_OUT = ("multiple scattering (the glow imitates some of it)",)
 
     def __init__(self, scene, device, settings, progress=False):

@@ -12,6 +12,7 @@ too: its single scattering is gathered at every step from ``sky_samples`` direct
 the sphere (``upload.sky_lights``), sum_k sigma_s p_k T_k / sum_k sigma_s p_k times
 sigma_s L_sky, and on surfaces as pi f L_sky sum_k cos_k T_k / sum_k cos_k; both exact where
 nothing shadows the point, and the error of the shadowed part falls as the directions grow.
+Each sky direction's transmittance is marched with an eighth of ``shadow_steps``.
 
 With ``shadow_grid`` = n > 0, the transmittance from each light is baked once on an n^3
 lattice over the heterogeneous media (stage ``light_volume``, which reads the medium and
@@ -36,7 +37,7 @@ from ..media.grid import lattice_trilinear_vec3
 from ..media.volume import Media, in_scatter_at, scattering_at, sigma_t_at
 from ..physics.brdf import brdf_eval
 from ..physics.constants import INF, PI, RAY_EPS
-from ..physics.lights import Light, light_incident
+from ..physics.lights import DIRECTIONAL, Light, light_incident, segment_mean_inverse_square
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Setting, SettingsError, Stage, Technique
 from ..shading import light_transmittance, marched_optical_depth, surface_direct
@@ -48,7 +49,7 @@ SETTINGS = {
     "step_length": Setting(0.0, 0.0, 1.0e6, "step length in scene units; 0 = use steps"),
     "shadow_steps": Setting(32, 1, 1 << 20, "steps along each ray toward a light, heterogeneous media"),
     "shadow_grid": Setting(0, 0, 512, "nodes per axis of the baked light-transmittance volume; 0 = march to the lights"),
-    "sky_samples": Setting(16, 0, 4096, "directions the sky's light (the background) is gathered from at every step "
+    "sky_samples": Setting(8, 0, 4096, "directions the sky's light (the background) is gathered from at every step "
                                         "and surface point; 0: leave it out"),
 }
 
@@ -79,7 +80,7 @@ def bake_light_transmittance(offset: int, m: Media, lights: wp.array(dtype=Light
 
 @wp.func
 def light_at(m: Media, s: Surfaces, l: int, x: wp.vec3, wi: wp.vec3, dist: float, st: MarchSettings,
-             baked: wp.array(dtype=wp.vec3)) -> wp.vec3:
+             baked: wp.array(dtype=wp.vec3), steps: int) -> wp.vec3:
     """Transmittance from light l (the scene's lights, then the sky's directions, as baked) to
     x: past the surfaces, and through the media marched or read from the baked lattice."""
     rng = wp.uint32(0)  # unused: transmittance is marched, not estimated
@@ -88,7 +89,14 @@ def light_at(m: Media, s: Surfaces, l: int, x: wp.vec3, wi: wp.vec3, dist: float
             return wp.vec3(0.0)
         g = st.shadow_grid
         return lattice_trilinear_vec3(baked, l * g * g * g, g, st.grid_lo, st.grid_hi, x)
-    return light_transmittance(m, s, x, wi, dist, 0, rng, st.shadow_steps)
+    return light_transmittance(m, s, x, wi, dist, 0, rng, steps)
+
+
+@wp.func
+def sky_steps(st: MarchSettings) -> int:
+    """Steps toward each sky direction: an eighth of ``shadow_steps`` (at least 4). The sky is
+    a sum over many directions, each of which blurs into the rest, so a coarser march serves."""
+    return wp.max(st.shadow_steps / 8, 4)
 
 
 @wp.func
@@ -102,7 +110,7 @@ def sky_in_scatter(m: Media, s: Surfaces, sky: wp.array(dtype=Light), first: int
     for k in range(sky.shape[0]):
         wi = -sky[k].direction
         ph = in_scatter_at(m, x, wp.dot(d, wi))
-        num += wp.cw_mul(ph, light_at(m, s, first + k, x, wi, INF, st, baked))
+        num += wp.cw_mul(ph, light_at(m, s, first + k, x, wi, INF, st, baked, sky_steps(st)))
         den += ph
     mean_t = wp.vec3(num[0] / wp.max(den[0], 1.0e-30), num[1] / wp.max(den[1], 1.0e-30), num[2] / wp.max(den[2], 1.0e-30))
     return wp.cw_mul(wp.cw_mul(mean_t, scattering_at(m, x)), radiance)
@@ -123,7 +131,7 @@ def sky_on_surface(m: Media, s: Surfaces, sky: wp.array(dtype=Light), first: int
         if c > 0.0:
             csum += c
             acc += c * wp.cw_mul(brdf_eval(mat, n, wo, wi), light_at(m, s, first + k, p + RAY_EPS * n, wi, INF, st,
-                                                                     baked))
+                                                                     baked, sky_steps(st)))
     if csum > 0.0:
         return wp.cw_mul(acc, radiance) * (PI / csum)
     return wp.vec3(0.0)
@@ -157,10 +165,15 @@ def march_single_scattering(offset: int, cam: RasterView, m: Media, s: Surfaces,
             sig = sigma_t_at(m, x, False)
             if sig[0] > 0.0 or sig[1] > 0.0 or sig[2] > 0.0:
                 inscatter = wp.vec3(0.0)
+                t_mid = ta + (float(k) + 0.5) * dt
                 for l in range(lights.shape[0]):
                     wi, dist, e = light_incident(lights[l], x)
                     if dist > 0.0:
-                        tl = light_at(m, s, l, x, wi, dist, st, baked)
+                        if lights[l].kind != DIRECTIONAL:  # 1/d^2 averaged over the step, not sampled
+                            e_d2 = wp.where(dist > 1.0e-10, e * (dist * dist), lights[l].strength)  # I x falloff
+                            e = e_d2 * segment_mean_inverse_square(o, d, t_mid - 0.5 * dt, t_mid + 0.5 * dt,
+                                                                   lights[l].position)
+                        tl = light_at(m, s, l, x, wi, dist, st, baked, st.shadow_steps)
                         inscatter += wp.cw_mul(wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e), tl)
                 if sky.shape[0] > 0:
                     inscatter += sky_in_scatter(m, s, sky, lights.shape[0], x, d, background, st, baked)
@@ -184,6 +197,7 @@ class Raymarch(Technique):
 
     NAME = NAME
     SETTINGS = SETTINGS
+    QUALITY = ("steps", 8, 1024, ("shadow_steps",), 2)
     LEAVES_OUT = ("multiple scattering",)
 
     def __init__(self, scene, device, settings, progress=False):

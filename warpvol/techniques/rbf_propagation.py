@@ -384,6 +384,7 @@ class RBFPropagation(Technique):
 
     NAME = NAME
     SETTINGS = SETTINGS
+    QUALITY = ("grid", 8, 256, (), 1)
     LEAVES_OUT = ("multiple scattering",)
 
     def __init__(self, scene, device, settings, progress=False):

@@ -295,6 +295,7 @@ class Reference(Technique):
 
     NAME = NAME
     SETTINGS = SETTINGS
+    QUALITY = ("spp", 16, 1 << 20, (), 0.5)
     LEAVES_OUT = ()
     GATHERS_SKY = True
 

@@ -1,0 +1,78 @@
+"""``target_error``: a one-shot render raises the technique's quality knob until its error
+estimate meets the target. Checked on seeded random scenes (homogeneous and grid media,
+point and directional lights, with and without a sky and a floor) against a fine render of
+the same technique."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+import warpvol as wv
+from warpvol.pipeline import SettingsError
+
+
+def random_scene(seed: int) -> dict:
+    rng = np.random.default_rng(seed)
+    if rng.random() < 0.5:
+        shape = str(rng.choice(["box", "sphere"]))
+        medium = {"type": "homogeneous", "shape": shape, "center": rng.uniform(-0.2, 0.2, 3).tolist(),
+                  "sigma_t": float(10 ** rng.uniform(-1, 0.7)), "albedo": float(rng.uniform(0.3, 1.0)),
+                  "phase": {"type": "hg", "g": float(rng.uniform(-0.5, 0.8))}}
+        if shape == "box":
+            medium["size"] = rng.uniform(0.8, 2.0, 3).tolist()
+        else:
+            medium["radius"] = float(rng.uniform(0.6, 1.2))
+    else:
+        n = int(rng.integers(4, 12))
+        medium = {"type": "grid", "density": rng.uniform(0, 1, (n, n, n)).astype(np.float32),
+                  "bounds_min": [-1, -1, -1], "bounds_max": [1, 1, 1], "sigma_t_scale": float(10 ** rng.uniform(-0.5, 0.8)),
+                  "albedo": float(rng.uniform(0.3, 1.0))}
+    if rng.random() < 0.5:
+        light = {"type": "point", "position": rng.uniform(-1.2, 1.2, 3).tolist(), "intensity": float(rng.uniform(1, 6))}
+    else:
+        light = {"type": "directional", "direction": (rng.normal(size=3) - [0, 2, 0]).tolist(),
+                 "irradiance": float(rng.uniform(1, 3))}
+    sky = rng.uniform(0, 0.3, 3).tolist() if rng.random() < 0.5 else [0.0, 0.0, 0.0]
+    floor = [{"type": "plane", "center": [0, -1.1, 0], "normal": [0, 1, 0], "size": [4, 4], "diffuse": 0.5}]
+    return {"name": f"random-{seed}", "background": sky,
+            "camera": {"origin": (rng.normal(size=3) * 0.3 + [0, 0.3, 3.5]).tolist(), "target": [0, 0, 0],
+                       "fov_y": 45.0, "width": 16, "height": 12},
+            "lights": [light], "media": [medium], "surfaces": floor if rng.random() < 0.5 else []}
+
+
+def test_raymarch_meets_its_target_on_random_scenes():
+    """12 seeded scenes, target 0.01: the true error (against 512 steps) is at most the target
+    in at least 90% of them (measured: all 12). The estimate is not yet within 2x of the truth
+    everywhere (measured: 0.17x to 2.9x; far below the target, the levels' differences stop
+    converging geometrically), so only its coverage is asserted."""
+    target, met = 0.01, 0
+    for seed in range(12):
+        scene = random_scene(seed)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            frame = wv.render(scene, "raymarch", device="cpu", target_error=target)
+        fine = wv.render(scene, "raymarch", device="cpu", steps=512, shadow_steps=512).image
+        truth = wv.relative_rmse(frame.image, fine)
+        assert frame.error_estimate is not None and frame.error_estimate <= target and frame.settings["steps"] <= 512
+        met += truth <= target
+    assert met >= 0.9 * 12, met
+
+
+def test_the_reference_stops_at_its_noise():
+    """The reference's estimate is the relative standard error of two independent halves; a
+    tighter target takes more samples and reports a smaller estimate."""
+    scene = random_scene(3)
+    loose = wv.render(scene, "reference", device="cpu", target_error=0.02)
+    tight = wv.render(scene, "reference", device="cpu", target_error=0.004)
+    assert loose.error_estimate <= 0.02 and tight.error_estimate <= 0.004
+    assert tight.settings["spp"] > loose.settings["spp"]
+
+
+def test_target_error_errors_name_the_key():
+    with pytest.raises(SettingsError, match="target_error=2"):
+        wv.render("fog-box", "raymarch", device="cpu", target_error=2)
+    with pytest.raises(SettingsError, match="not both"):
+        wv.render("fog-box", "raymarch", device="cpu", target_error=0.1, steps=16)
+    with pytest.raises(SettingsError, match="not supported yet"):
+        wv.render("fog-box", "light_shafts", device="cpu", target_error=0.1)
