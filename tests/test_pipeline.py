@@ -78,7 +78,7 @@ def test_camera_and_settings_rerun_only_their_readers(device):
 
 @pytest.mark.parametrize("scene, settings, skipped", [
     (smoke(surfaces=False), SMALL, {"surfaces"}),  # no occluders: no BVH
-    (smoke(lights=False), SMALL, {"light_volume"}),  # nothing to propagate
+    (smoke(lights=False), dict(SMALL, sky_samples=0), {"light_volume"}),  # nothing to propagate (no lights, no sky)
     (smoke(), dict(SMALL, shadow_grid=0), {"light_volume"}),  # marched shadow rays asked for
     ("point-in-fog", SMALL, {"light_volume", "surfaces"}),  # homogeneous: transmittance is exact; no walls
 ])
