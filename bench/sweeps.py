@@ -85,16 +85,22 @@ def _raymarch_grid(quick: bool) -> list[dict]:
     return [{"steps": s, "shadow_grid": g} for g, s in itertools.product(grids, steps)]
 
 
-def score_against_reference(row: dict, scene, device: str, spp: int) -> dict:
-    """Add to ``row`` the relative RMSE of its frame against the reference at pixel centres in
-    single scattering (what the real-time techniques compute, without their error; two seeds
-    of ``spp``), raw and with the reference's own noise removed: that noise adds in
-    quadrature, E[err^2 to a noisy ref] = err^2 + floor^2."""
-    ref, floor = reference_image(scene, device, spp=spp, max_bounces=1, pixel_area=0)
+def score(row: dict, scene, device: str, spp: int, max_bounces: int = 1) -> np.ndarray:
+    """Add to ``row`` the relative RMSE of its frame against the reference at pixel centres
+    (``max_bounces`` 1: single scattering, what the real-time techniques compute, without
+    their error; two seeds of ``spp``), raw and with the reference's own noise removed: that
+    noise adds in quadrature, E[err^2 to a noisy ref] = err^2 + floor^2. Returns the reference."""
+    ref, floor = reference_image(scene, device, spp=spp, max_bounces=max_bounces, pixel_area=0)
     row["rel_rmse"] = wv.relative_rmse(row["frame"].image, ref)
     row["rel_rmse_corrected"] = max(row["rel_rmse"] ** 2 - floor**2, 0.0) ** 0.5
-    row["reference"] = {"spp": 2 * spp, "max_bounces": 1, "pixel_area": 0, "rel_rmse_floor": floor}
+    row["reference"] = {"spp": 2 * spp, "max_bounces": max_bounces, "pixel_area": 0, "rel_rmse_floor": floor}
     row["scene"] = f"{scene.name} {scene.camera.width}x{scene.camera.height}"
+    return ref
+
+
+def score_against_reference(row: dict, scene, device: str, spp: int) -> dict:
+    """``score`` in single scattering; returns the row."""
+    score(row, scene, device, spp)
     return row
 
 
@@ -538,12 +544,8 @@ def _network_accuracy(params: dict, device: str, quick: bool) -> dict:
     row = time_frames(r, repeats=1 if quick else 2, invalidate=("lights",))
     row["window_used"] = r.technique.M
     row["iterations_to_converge"] = len(r.technique.history)
-    ref, floor = reference_image(scene, device, spp=16 if quick else 128, max_bounces=-1, pixel_area=0)
-    row["rel_rmse"] = wv.relative_rmse(row["frame"].image, ref)
-    row["rel_rmse_corrected"] = max(row["rel_rmse"] ** 2 - floor**2, 0.0) ** 0.5
+    ref = score(row, scene, device, 16 if quick else 128, max_bounces=-1)
     row["mean_ratio"] = float(row["frame"].image.mean() / ref.mean())
-    row["reference"] = {"spp": 2 * (16 if quick else 128), "max_bounces": -1, "pixel_area": 0,
-                        "rel_rmse_floor": floor}
     row["scene"] = f"{params['particles']} particles {w}x{w}"
     return row
 
@@ -592,11 +594,7 @@ def _lightpass_accuracy(params: dict, device: str, quick: bool) -> dict:
     row["texels"] = r.technique.light_pass.M
     image = row["frame"].image
     row["image_move"] = wv.relative_rmse(image, truth_image)
-    ref, floor = reference_image(scene, device, spp=16 if quick else 128, max_bounces=-1, pixel_area=0)
-    row["rel_rmse"] = wv.relative_rmse(image, ref)
-    row["rel_rmse_corrected"] = max(row["rel_rmse"] ** 2 - floor**2, 0.0) ** 0.5
-    row["reference"] = {"spp": 2 * (16 if quick else 128), "max_bounces": -1, "pixel_area": 0,
-                        "rel_rmse_floor": floor}
+    score(row, scene, device, 16 if quick else 128, max_bounces=-1)
     row["scene"] = f"{n} particles {w}x{w}, 2 suns + sky, D = 128"
     return row
 
@@ -781,15 +779,12 @@ def _impostor_accuracy(params: dict, device: str, quick: bool) -> dict:
     r = wv.Renderer(scene, technique="depth_impostors", device=device, **_impostor_settings(params))
     row = time_frames(r, repeats=2 if quick else 5, invalidate=("medium", "lights"))
     spp = 16 if quick else 256
-    ref, floor = reference_image(scene, device, spp=spp, max_bounces=1, pixel_area=0)
+    ref = score(row, scene, device, spp)
     ms, _ = reference_image(scene, device, spp=spp, max_bounces=-1, pixel_area=0)
     image = row["frame"].image
-    row["rel_rmse"] = wv.relative_rmse(image, ref)
-    row["rel_rmse_corrected"] = max(row["rel_rmse"] ** 2 - floor**2, 0.0) ** 0.5
     row["rel_rmse_multiple"] = wv.relative_rmse(image, ms)
     row["mean_ratio"] = float(image.mean() / ref.mean())
     row["single_of_multiple"] = float(ref.mean() / ms.mean())
-    row["reference"] = {"spp": 2 * spp, "max_bounces": 1, "pixel_area": 0, "rel_rmse_floor": floor}
     row["scene"] = f"{n} particles in {n // b} blocks of {b}, {w}x{w}, one sun"
     return row
 
@@ -833,15 +828,11 @@ def _impostor_objects(params: dict, device: str, quick: bool) -> dict:
     r = wv.Renderer(scene, technique="depth_impostors", device=device, object_depth=params["object_depth"],
                     light_pass=0)
     row = time_frames(r, repeats=2 if quick else 5, invalidate=("medium", "lights"))
-    spp = 16 if quick else 256
-    ref, floor = reference_image(scene, device, spp=spp, max_bounces=1, pixel_area=0)
+    ref = score(row, scene, device, 16 if quick else 256)
     image = row["frame"].image
-    row["rel_rmse"] = wv.relative_rmse(image, ref)
-    row["rel_rmse_corrected"] = max(row["rel_rmse"] ** 2 - floor**2, 0.0) ** 0.5
     band = _plane_in_blocks(scene, r.technique.blocks.centre.numpy(), r.technique.blocks.reach.numpy())
     row["band_pixels"] = int(band.sum())
     row["rel_rmse_band"] = wv.relative_rmse(image[band], ref[band]) if band.any() else float("nan")
-    row["reference"] = {"spp": 2 * spp, "max_bounces": 1, "pixel_area": 0, "rel_rmse_floor": floor}
     row["scene"] = (f"{n} particles in {n // b} blocks of {b}, a plane through the cloud, {w}x{w}; band: the "
                     f"{row['band_pixels']} pixels where the plane lies inside a block's bounding sphere")
     row["images"] = {"image": image}
@@ -902,14 +893,11 @@ def _glow_physics(params: dict, device: str, quick: bool) -> dict:
     r = wv.Renderer(scene, technique=name.split(" ")[0], device=device, **GLOW_TECHNIQUES[name])
     row = time_frames(r, repeats=2 if quick else 3, invalidate=("camera",))
     spp = 16 if quick else 512
-    ref, floor = reference_image(scene, device, spp=spp, max_bounces=1, pixel_area=0)
+    score(row, scene, device, spp)
     ms, _ = reference_image(scene, device, spp=spp, max_bounces=-1, pixel_area=0)
     image = row["frame"].image
-    row["rel_rmse"] = wv.relative_rmse(image, ref)
-    row["rel_rmse_corrected"] = max(row["rel_rmse"] ** 2 - floor**2, 0.0) ** 0.5
     row["rel_rmse_multiple"] = wv.relative_rmse(image, ms)
     row["mean_ratio"] = float(image.mean() / ms.mean())
-    row["reference"] = {"spp": 2 * spp, "max_bounces": 1, "pixel_area": 0, "rel_rmse_floor": floor}
     row["scene"] = f"dusty-lamp {scene.camera.width}x{scene.camera.height}"
     return row
 

@@ -49,7 +49,7 @@ SETTINGS = {
     "step_length": Setting(0.0, 0.0, 1.0e6, "step length in scene units; 0 = use steps"),
     "shadow_steps": Setting(32, 1, 1 << 20, "steps along each ray toward a light, heterogeneous media"),
     "shadow_grid": Setting(0, 0, 512, "nodes per axis of the baked light-transmittance volume; 0 = march to the lights"),
-    "sky_samples": Setting(8, 0, 4096, "directions the sky's light (the background) is gathered from at every step "
+    "sky_samples": Setting(32, 0, 4096, "directions the sky's light (the background) is gathered from at every step "
                                         "and surface point; 0: leave it out"),
 }
 
