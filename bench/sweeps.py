@@ -978,6 +978,57 @@ def _glow_stability(params: dict, device: str, quick: bool) -> dict:
     return row
 
 
+# --- every technique on one front ---------------------------------------------------------------
+
+FRONT_FAMILIES = {"fog and occluders": "fog-box", "grid": "smoke-grid", "RBF": "rbf-single",
+                  "particles": "particle-cloud"}
+FRONT_LADDERS = {"reference": ("spp", (4, 16, 64, 256)), "raymarch": ("steps", (8, 32, 128)),
+                 "light_shafts": ("steps", (16, 64, 256)), "rbf_propagation": ("grid", (10, 20, 40)),
+                 "particle_glow": ("steps", (32, 128)), "illumination_network": ("directions", (32, 128)),
+                 "depth_impostors": ("slices", (4, 16))}
+FRONT_SIZE = (64, 48)
+
+
+def front_scene(family: str, quick: bool):
+    w, h = (16, 12) if quick else FRONT_SIZE
+    return wv.load_scene(FRONT_FAMILIES[family], [f"camera.width={w}", f"camera.height={h}"])
+
+
+def _front_grid(quick: bool) -> list[dict]:
+    """Every (family, technique, level) a technique can render: those whose Renderer accepts
+    the scene (a technique refuses a medium it does not model)."""
+    out = []
+    for family in FRONT_FAMILIES:
+        scene = front_scene(family, quick)
+        for technique, (knob, levels) in FRONT_LADDERS.items():
+            try:
+                wv.Renderer(scene, technique=technique, device="cpu")
+            except (wv.SettingsError, ValueError):
+                continue
+            out += [{"family": family, "technique": technique, knob: v} for v in (levels[:1] if quick else levels)]
+    return out
+
+
+def _front(params: dict, device: str, quick: bool) -> dict:
+    """One technique at one quality level against the physical answer (the reference, all
+    orders of scattering, sky included; two seeds of 2048 spp): relative RMSE with the
+    reference's noise removed, and the time of a whole frame (every stage run). Iterative
+    techniques run to convergence in the frame (illumination_network: up to 2000 iterations)."""
+    family, technique = params["family"], params["technique"]
+    knob = FRONT_LADDERS[technique][0]
+    scene = front_scene(family, quick)
+    settings = {knob: params[knob]}
+    if technique == "illumination_network":
+        settings["iterations"] = 2000
+    r = wv.Renderer(scene, technique=technique, device=device, **settings)
+    row = time_frames(r, repeats=1 if quick else 2)
+    ref = score(row, scene, device, 16 if quick else 2048, max_bounces=-1)
+    row["mean_ratio"] = float(row["frame"].image.mean() / ref.mean())
+    row["leaves_out"] = row["frame"].leaves_out
+    row["scene"] = f"{FRONT_FAMILIES[family]} {scene.camera.width}x{scene.camera.height}"
+    return row
+
+
 # --- the reference's own speed -----------------------------------------------------------------
 
 SPEED_SCENES = ["fog-box", "point-in-fog", "smoke-grid", "rbf-single", "rbf-cornell", "rbf-thick-fog", "particle-cloud"]
@@ -1109,6 +1160,9 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
     Sweep("particle-glow-stability", "particle_glow: the frame-to-frame change of a slowly moving camera's image, "
           "the grain fixed in the world (as built) against grain that moves with the screen, and without the glow",
           "particle_glow", "table", _glow_stability_grid, _glow_stability, issue=16),
+    Sweep("accuracy-vs-time", "every technique that can render a scene family, at a ladder of its quality knob, "
+          "against the physical answer (the reference, all orders of scattering, sky included): relative RMSE "
+          "against ms per frame, 64x48", "reference", "front", _front_grid, _front, issue=17),
     Sweep("raymarch-accuracy", "raymarch: relative RMSE against the single-scattering reference vs ms per frame, "
           "sweeping steps (= shadow_steps) and the baked light-volume size (0 = marched shadow rays)",
           "raymarch", "accuracy", _raymarch_grid, _raymarch_accuracy),
