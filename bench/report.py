@@ -326,6 +326,27 @@ def table_section(rows: list[dict], png: Path) -> list[str]:
     return lines
 
 
+MODEL_ERROR = Path(__file__).resolve().parents[1] / "warpvol" / "model_error.json"
+
+
+def write_model_error(rows: list[dict]) -> None:
+    """For ``technique="auto"``: per family and technique its lowest measured error against the
+    physical answer, the frame time and settings that reached it (from accuracy-vs-time)."""
+    families: dict = {}
+    for r in rows:
+        p = r["params"]
+        if p["technique"] == "reference":
+            continue
+        best = families.setdefault(p["family"], {}).get(p["technique"])
+        if best is None or r["rel_rmse_corrected"] < best["error"]:
+            families[p["family"]][p["technique"]] = {
+                "error": round(r["rel_rmse_corrected"], 4), "ms": round(r["median_ms"], 1),
+                "settings": {k: v for k, v in p.items() if k not in ("family", "technique")}}
+    doc = {"from": "results/accuracy-vs-time (python -m warpvol bench accuracy-vs-time)", "device": rows[0]["device"],
+           "commit": rows[0]["commit"], "image": rows[0]["scene"].split()[-1], "families": families}
+    MODEL_ERROR.write_text(json.dumps(doc, indent=1) + "\n")
+
+
 def front_section(rows: list[dict], png: Path) -> list[str]:
     """Per scene family, every technique's error against the physical answer over its frame
     time, one line per technique on a log-log plot, and the table."""
@@ -355,8 +376,11 @@ def front_section(rows: list[dict], png: Path) -> list[str]:
     fig.tight_layout()
     fig.savefig(png, dpi=110)
     plt.close(fig)
+    write_model_error(rows)
     floor = rows[0]["reference"]["rel_rmse_floor"]
-    lines += ["", f"The physical answer: the reference with all orders of scattering, {rows[0]['reference']['spp']} spp "
+    lines += ["", "`technique=\"auto\"` reads the best error and its time per family and technique from "
+              "`warpvol/model_error.json`, written with this page.",
+              "", f"The physical answer: the reference with all orders of scattering, {rows[0]['reference']['spp']} spp "
               f"at pixel centres (its own relative noise {floor:.4f} for the first family, removed in quadrature). "
               "A frame runs every stage its technique has (nothing cached)."]
     return lines

@@ -76,3 +76,17 @@ def test_target_error_errors_name_the_key():
         wv.render("fog-box", "raymarch", device="cpu", target_error=0.1, steps=16)
     with pytest.raises(SettingsError, match="not supported yet"):
         wv.render("fog-box", "light_shafts", device="cpu", target_error=0.1)
+
+
+def test_auto_picks_the_fastest_technique_that_meets_the_target():
+    """technique="auto" against the physical answer: with a loose target a real-time technique
+    whose measured error on the family meets it (not the reference); with a target none of
+    them meets, the reference to that target by its noise; without a target, an error."""
+    scene = wv.load_scene("fog-box", ["camera.width=16", "camera.height=12"])
+    loose = wv.render(scene, "auto", device="cpu", target_error=0.6)
+    assert loose.technique != "reference" and loose.choice.startswith(loose.technique)
+    strict = wv.render(scene, "auto", device="cpu", target_error=0.1)
+    assert strict.technique == "reference" and strict.choice.startswith("reference: no technique")
+    assert strict.error_estimate <= 0.1
+    with pytest.raises(SettingsError, match="auto: give target_error"):
+        wv.render(scene, "auto", device="cpu")

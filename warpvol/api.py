@@ -184,6 +184,49 @@ def _render_to_target(scene, technique: str, device, progress: bool, target: flo
     return frame
 
 
+FAMILIES = {"homogeneous": "fog and occluders", "grid": "grid", "rbf": "RBF", "particles": "particles"}
+
+
+def _render_auto(scene, device, progress: bool, settings: dict) -> Frame:
+    """``technique="auto"``: the fastest technique whose measured error against the physical
+    answer (all orders of scattering: ``model_error.json``, from results/accuracy-vs-time) on
+    the scene's family meets ``target_error``, at the settings that measured it; else the
+    reference, to the target by its own noise."""
+    import json
+    from importlib import resources
+
+    if "target_error" not in settings:
+        raise SettingsError("auto: give target_error (allowed: 0 < target_error < 1): the technique is chosen to meet it")
+    target = _check_target(settings.pop("target_error"))
+    if settings:
+        raise SettingsError(f"auto: unknown setting {sorted(settings)[0]!r} (allowed: target_error; the chosen "
+                            "technique's settings come with it)")
+    scene = load_scene(scene)
+    kinds = {m.type for m in scene.media}
+    family = FAMILIES.get(kinds.pop()) if len(kinds) == 1 else None
+    table = json.loads(resources.files("warpvol").joinpath("model_error.json").read_text())
+    measured = table["families"].get(family, {}) if family else {}
+    why = f"no technique's measured error on {family or 'this mix of media'} meets {target:g}"
+    if measured:
+        best = min(measured.items(), key=lambda kv: kv[1]["error"])
+        why += f" (best: {best[0]} {best[1]['error']:.3g})"
+    for name, m in sorted(measured.items(), key=lambda kv: kv[1]["ms"]):
+        if m["error"] <= target:
+            try:
+                renderer = Renderer(scene, name, device, progress, **m["settings"])
+            except SettingsError:
+                continue
+            renderer.technique.one_shot = True
+            frame = renderer.render()
+            frame.choice = (f"{name}: measured error {m['error']:.3g} <= {target:g} on {family} in {m['ms']:.0f} ms "
+                            f"({', '.join(f'{k}={v}' for k, v in m['settings'].items())}; {table['device']}, "
+                            f"{table['image']})")
+            return frame
+    frame = _render_to_target(scene, "reference", device, progress, target, {})
+    frame.choice = f"reference: {why}; to {target:g} by its own noise"
+    return frame
+
+
 def render(scene, technique: str = "reference", device: str | None = None, progress: bool = False, **settings) -> Frame:
     """Render ``scene`` (a Scene, a .toml path, a built-in name or a dict) with ``technique``.
 
@@ -201,7 +244,13 @@ def render(scene, technique: str = "reference", device: str | None = None, progr
     differences of successive levels and r = d2 / d1), or for the reference from two
     independent halves of the samples. ``frame.error_estimate`` holds it; above the target
     at the knob's limit, a warning.
+
+    ``technique="auto"`` (with ``target_error``, against the physical answer, all orders of
+    scattering): the fastest technique whose measured error on the scene's family meets it
+    (``frame.technique``; ``frame.choice`` says why), else the reference.
     """
+    if technique == "auto":
+        return _render_auto(scene, device, progress, settings)
     if "target_error" in settings:
         target = _check_target(settings.pop("target_error"))
         return _render_to_target(scene, technique, device, progress, target, settings)

@@ -53,7 +53,7 @@ def _parse_set(values: list[str], technique: str) -> tuple[dict, list[str]]:
     from warpvol.scene.load import tomllib
     from warpvol.techniques import TECHNIQUES
 
-    spec = TECHNIQUES[technique].SETTINGS
+    spec = TECHNIQUES[technique].SETTINGS if technique != "auto" else {}
     settings, overrides = {}, []
     for item in values:
         key, _, value = item.partition("=")
@@ -80,7 +80,7 @@ def cmd_render(args) -> int:
 
     for out in args.out:  # before anything is loaded or rendered
         check_output_path(out)
-    spec = technique_class(args.technique).SETTINGS
+    spec = technique_class(args.technique).SETTINGS if args.technique != "auto" else {}
     settings, overrides = _parse_set(args.set or [], args.technique)
     if args.spp is not None:
         if "spp" not in spec:
@@ -94,10 +94,12 @@ def cmd_render(args) -> int:
     wall = time.perf_counter() - t0
     chosen = ""
     if frame.error_estimate is not None:
-        knob = technique_class(args.technique).QUALITY[0]
+        knob = technique_class(frame.technique).QUALITY[0]
         chosen = f", {knob} = {frame.settings[knob]}, estimated error {frame.error_estimate:.3g}"
     print(f"{scene.name}: {args.technique} on {frame.device}, {scene.camera.width}x{scene.camera.height}{chosen}, "
           f"{wall:.2f} s -> {', '.join(args.out)}")
+    if frame.choice:
+        print(f"  auto: {frame.choice}")
     if args.timings:
         for stage, run in frame.stages.items():
             print(f"  {stage:<14} {run.status:<8} {run.ms:10.2f} ms")
@@ -182,7 +184,8 @@ def main(argv: list[str] | None = None) -> int:
     sub = parser.add_subparsers(dest="command", required=True)
     r = sub.add_parser("render", parents=[common], help="render a scene file or a built-in scene to .exr / .png / .npy")
     r.add_argument("scene", help="a .toml scene file or a built-in scene name (see `scenes`)")
-    r.add_argument("--technique", default="reference", help=f"{' | '.join(technique_names())} (default: reference)")
+    r.add_argument("--technique", default="reference",
+                   help=f"{' | '.join(technique_names())} | auto (with --set target_error=E) (default: reference)")
     r.add_argument("--out", action="append", required=True, help="output image; repeat for several (.exr .png .npy)")
     r.add_argument("--device", default=None, help="cpu | cuda | cuda:N (default: $WARPVOL_DEVICE, else CUDA if present)")
     r.add_argument("--spp", type=_integer, default=None, help="samples per pixel (reference)")

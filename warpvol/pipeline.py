@@ -160,6 +160,7 @@ class Frame:
                  stages: dict[str, StageRun], leaves_out: list[str] | None = None):
         self.leaves_out = list(leaves_out or [])  # what the technique's model leaves out of the physics
         self.error_estimate: float | None = None  # render(target_error=...): the image's estimated error
+        self.choice: str | None = None  # render(technique="auto"): what was chosen and why
         self._output = output
         self._image = None
         self.shape = shape
