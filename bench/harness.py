@@ -16,6 +16,8 @@ spread (min..max) over those frames, the per-stage medians, and the peak memory.
 
 from __future__ import annotations
 
+import ctypes
+import gc
 import hashlib
 import json
 import os
@@ -71,7 +73,8 @@ def git_commit() -> str:
 class PeakMemory:
     """Peak memory while the block runs, in MB above what was in use when it started.
 
-    CPU: the process's resident-set high-water mark (reset through /proc/self/clear_refs).
+    CPU: the process's resident-set high-water mark (reset through /proc/self/clear_refs),
+    after freed memory is returned to the system (``malloc_trim``).
     CUDA: Warp's memory-pool high-water mark; it cannot be reset, so a block that stays
     below an earlier peak reports its own allocations at the end instead.
     """
@@ -93,6 +96,13 @@ class PeakMemory:
             self.base = wp.get_mempool_used_mem_current(self.device) / 2**20
             self.high = wp.get_mempool_used_mem_high(self.device) / 2**20
         else:
+            # hand what earlier rows freed back to the system first: otherwise a row reuses it and
+            # its resident set never rises above the baseline (every row after the first read 0)
+            gc.collect()
+            try:
+                ctypes.CDLL("libc.so.6").malloc_trim(0)
+            except (OSError, AttributeError):
+                pass
             try:
                 with open("/proc/self/clear_refs", "w") as fh:
                     fh.write("5")
