@@ -46,6 +46,7 @@ TINY = {
     "rbf_propagation": {"grid": 6, "steps": 12},
     "illumination_network": {"directions": 8, "iterations": 3, "light_samples": 1},
     "depth_impostors": {"impostor_res": 4, "slices": 2, "light_samples": 2},
+    "particle_glow": {"steps": 12, "shadow_map_res": 16, "shadow_steps": 6, "specular": 0.3},
 }
 #: And each light-pass representation (media/lightpass.py) at a few points a sphere.
 LIGHT_PASSES = [{"light_pass": k, "light_samples": 3, "light_slices": 3, "light_terms": 2} for k in (0, 1, 2)]
