@@ -237,7 +237,7 @@ def render(scene, technique: str = "reference", device: str | None = None, progr
 
     ``target_error`` (0..1): the relative RMSE (``metrics.relative_rmse``) the image may have
     against the technique's own converged answer (its discretisation, not its model: see
-    ``frame.leaves_out``). The technique's quality knob (``Technique.QUALITY``: raymarch and
+    ``frame.leaves_out``). The technique's quality knob (``Technique.QUALITY``: raymarch, light_shafts and
     particle_glow steps, rbf_propagation grid, depth_impostors slices, reference spp) is
     doubled from its start; the error of the finest image is estimated from the last three
     levels, assuming geometric convergence (e_2k = r e_k: estimate d2 r / (1 - r) with d the

@@ -353,6 +353,7 @@ class LightShafts(Technique):
 
     NAME = NAME
     SETTINGS = SETTINGS
+    QUALITY = ("steps", 16, 4096, (), 1)
     LEAVES_OUT = ("multiple scattering",)
 
     def __init__(self, scene, device, settings, progress=False):
