@@ -341,9 +341,10 @@ def write_model_error(rows: list[dict]) -> None:
         p = r["params"]
         if p["technique"] == "reference":
             continue
-        best = families.setdefault(p["family"], {}).get(p["technique"])
+        family = families.setdefault(p["family"], {"media": r.get("media", []), "techniques": {}})
+        best = family["techniques"].get(p["technique"])
         if best is None or r["rel_rmse_corrected"] < best["error"]:
-            families[p["family"]][p["technique"]] = {
+            family["techniques"][p["technique"]] = {
                 "error": round(r["rel_rmse_corrected"], 4), "ms": round(r["median_ms"], 1),
                 "settings": {k: v for k, v in p.items() if k not in ("family", "technique")}}
     doc = {"from": "results/accuracy-vs-time (python -m warpvol bench accuracy-vs-time)", "device": rows[0]["device"],

@@ -980,8 +980,8 @@ def _glow_stability(params: dict, device: str, quick: bool) -> dict:
 
 # --- every technique on one front ---------------------------------------------------------------
 
-FRONT_FAMILIES = {"fog and occluders": "fog-box", "grid": "smoke-grid", "RBF": "rbf-single",
-                  "particles": "particle-cloud"}
+FRONT_FAMILIES = {"fog and occluders": "fog-box", "haze under a sky": "scenes/sunlit-haze.toml", "grid": "smoke-grid",
+                  "RBF": "rbf-single", "particles": "particle-cloud"}
 FRONT_LADDERS = {"reference": ("spp", (4, 16, 64, 256)), "raymarch": ("steps", (8, 32, 128)),
                  "light_shafts": ("steps", (16, 64, 256)), "rbf_propagation": ("grid", (10, 20, 40)),
                  "particle_glow": ("steps", (32, 128)), "illumination_network": ("directions", (32, 128)),
@@ -1025,7 +1025,8 @@ def _front(params: dict, device: str, quick: bool) -> dict:
     ref = score(row, scene, device, 16 if quick else 2048, max_bounces=-1)
     row["mean_ratio"] = float(row["frame"].image.mean() / ref.mean())
     row["leaves_out"] = row["frame"].leaves_out
-    row["scene"] = f"{FRONT_FAMILIES[family]} {scene.camera.width}x{scene.camera.height}"
+    row["media"] = sorted({m.type for m in scene.media})
+    row["scene"] = f"{scene.name} {scene.camera.width}x{scene.camera.height}"
     return row
 
 

@@ -184,14 +184,11 @@ def _render_to_target(scene, technique: str, device, progress: bool, target: flo
     return frame
 
 
-FAMILIES = {"homogeneous": "fog and occluders", "grid": "grid", "rbf": "RBF", "particles": "particles"}
-
-
 def _render_auto(scene, device, progress: bool, settings: dict) -> Frame:
     """``technique="auto"``: the fastest technique whose measured error against the physical
     answer (all orders of scattering: ``model_error.json``, from results/accuracy-vs-time) on
-    the scene's family meets ``target_error``, at the settings that measured it; else the
-    reference, to the target by its own noise."""
+    the families of the scene's kind of media (the worst of them) meets ``target_error``, at
+    the settings that measured it; else the reference, to the target by its own noise."""
     import json
     from importlib import resources
 
@@ -202,11 +199,19 @@ def _render_auto(scene, device, progress: bool, settings: dict) -> Frame:
         raise SettingsError(f"auto: unknown setting {sorted(settings)[0]!r} (allowed: target_error; the chosen "
                             "technique's settings come with it)")
     scene = load_scene(scene)
-    kinds = {m.type for m in scene.media}
-    family = FAMILIES.get(kinds.pop()) if len(kinds) == 1 else None
+    kinds = sorted({m.type for m in scene.media})
     table = json.loads(resources.files("warpvol").joinpath("model_error.json").read_text())
-    measured = table["families"].get(family, {}) if family else {}
-    why = f"no technique's measured error on {family or 'this mix of media'} meets {target:g}"
+    # every measured family of the scene's kind of media; per technique its worst error there
+    families = [name for name, f in table["families"].items() if f["media"] == kinds]
+    measured = {}
+    for name in families:
+        for t, m in table["families"][name]["techniques"].items():
+            if all(t in table["families"][n]["techniques"] for n in families):
+                old = measured.get(t)
+                if old is None or m["error"] > old["error"]:
+                    measured[t] = {**m, "ms": max(m["ms"], old["ms"]) if old else m["ms"]}
+    family = " and ".join(families) or None
+    why = f"no technique's measured error on {family or 'this kind of media'} meets {target:g}"
     if measured:
         best = min(measured.items(), key=lambda kv: kv[1]["error"])
         why += f" (best: {best[0]} {best[1]['error']:.3g})"
