@@ -77,3 +77,18 @@ def light_arriving(m: Media, sl: ShadowedLights, l: int, x: wp.vec3, n: wp.vec3,
     if v <= 0.0:
         return wi, wp.vec3(0.0), wp.vec3(0.0)
     return wi, e * v, marched_optical_depth(m, x, wi, 0.0, dist, shadow_steps)
+
+
+@wp.func
+def surface_through_maps(m: Media, sl: ShadowedLights, p: wp.vec3, n: wp.vec3, wo: wp.vec3, mat: Material,
+                         tau_view: wp.vec3, shadow_steps: int) -> wp.vec3:
+    """What a surface at p (normal n, facing wo) reflects toward wo of the lights past their
+    shadow maps and through the media (``light_arriving``), times exp(-tau_view): the caller's
+    optical depth on to the camera, put into the same exponential."""
+    L = wp.vec3(0.0)
+    for l in range(sl.lights.shape[0]):
+        wi, e, tau = light_arriving(m, sl, l, p, n, shadow_steps)
+        cos_l = wp.dot(n, wi)
+        if cos_l > 0.0:
+            L += cos_l * wp.cw_mul(brdf_eval(mat, n, wo, wi), wp.cw_mul(e, transmittance_rgb(tau + tau_view)))
+    return L

@@ -55,8 +55,12 @@ def pinhole(camera: Camera) -> PinholeCamera:
 
 def light_array(scene, device) -> wp.array:
     """The scene's lights as an array of ``Light`` structs."""
-    out = light_structs(scene)
-    return wp.array(out, dtype=Light, device=device) if out else wp.empty(0, dtype=Light, device=device)
+    return lights_array(light_structs(scene), device)
+
+
+def lights_array(structs: list, device) -> wp.array:
+    """Host-side ``Light`` structs as a device array (empty for none)."""
+    return wp.array(structs, dtype=Light, device=device) if structs else wp.empty(0, dtype=Light, device=device)
 
 
 def light_structs(scene) -> list:
@@ -81,7 +85,7 @@ def sky_lights(background, count: int, device) -> wp.array:
     (or by sum cos_k at a surface), which is exact for an unoccluded point. None when the sky
     is black or ``count`` is 0."""
     out = sky_light_structs(background, count)
-    return wp.array(out, dtype=Light, device=device) if out else None
+    return lights_array(out, device) if out else None
 
 
 def sky_light_structs(background, count: int) -> list:

@@ -53,21 +53,26 @@ def f_table() -> np.ndarray:
 
 
 @wp.func
-def f_lookup(table: wp.array2d(dtype=float), u: float, v: float) -> float:
-    v = wp.clamp(v, 0.0, 0.5 * PI)
-    if u > U_MAX:
-        return (1.0 - wp.exp(-u * wp.tan(wp.min(v, 1.5707)))) / u
-    nu = table.shape[0]
-    nv = table.shape[1]
-    x = wp.log(1.0 + wp.max(u, 0.0)) / wp.log(1.0 + U_MAX) * float(nu - 1)
-    y = v / (0.5 * PI) * float(nv - 1)
-    i = wp.min(int(x), nu - 2)
-    j = wp.min(int(y), nv - 2)
+def table_bilinear(table: wp.array2d(dtype=float), x: float, y: float) -> float:
+    """``table`` read bilinearly at fractional indices (x, y), both >= 0 (the last cell
+    extrapolates past the end)."""
+    i = wp.min(int(x), table.shape[0] - 2)
+    j = wp.min(int(y), table.shape[1] - 2)
     fx = x - float(i)
     fy = y - float(j)
     a = table[i, j] * (1.0 - fy) + table[i, j + 1] * fy
     b = table[i + 1, j] * (1.0 - fy) + table[i + 1, j + 1] * fy
     return a * (1.0 - fx) + b * fx
+
+
+@wp.func
+def f_lookup(table: wp.array2d(dtype=float), u: float, v: float) -> float:
+    v = wp.clamp(v, 0.0, 0.5 * PI)
+    if u > U_MAX:
+        return (1.0 - wp.exp(-u * wp.tan(wp.min(v, 1.5707)))) / u
+    x = wp.log(1.0 + wp.max(u, 0.0)) / wp.log(1.0 + U_MAX) * float(table.shape[0] - 1)
+    y = v / (0.5 * PI) * float(table.shape[1] - 1)
+    return table_bilinear(table, x, y)
 
 
 @wp.func
@@ -189,17 +194,9 @@ def g_lookup(table: wp.array2d(dtype=float), T: float, cos_theta: float) -> floa
     """G_n(T, theta) from ``g_table`` (bilinear in log(1 + T) and cos theta; T > G_T_MAX: 0)."""
     if T > G_T_MAX:
         return 0.0
-    nt = table.shape[0]
-    nth = table.shape[1]
-    x = wp.log(1.0 + wp.max(T, 0.0)) / wp.log(1.0 + G_T_MAX) * float(nt - 1)
-    y = (wp.clamp(cos_theta, -1.0, 1.0) + 1.0) * 0.5 * float(nth - 1)
-    i = wp.min(int(x), nt - 2)
-    j = wp.min(int(y), nth - 2)
-    fx = x - float(i)
-    fy = y - float(j)
-    a = table[i, j] * (1.0 - fy) + table[i, j + 1] * fy
-    b = table[i + 1, j] * (1.0 - fy) + table[i + 1, j + 1] * fy
-    return (a * (1.0 - fx) + b * fx) * wp.exp(-T)
+    x = wp.log(1.0 + wp.max(T, 0.0)) / wp.log(1.0 + G_T_MAX) * float(table.shape[0] - 1)
+    y = (wp.clamp(cos_theta, -1.0, 1.0) + 1.0) * 0.5 * float(table.shape[1] - 1)
+    return table_bilinear(table, x, y) * wp.exp(-T)
 
 
 @wp.func

@@ -88,11 +88,10 @@ from ..geometry.shadowmap import (
     texels,
 )
 from ..media.volume import Media, homogeneous_optical_depth, in_scatter_at, sigma_t_at
-from ..physics.brdf import brdf_eval
 from ..physics.constants import INF, RAY_EPS
 from ..physics.transmittance import transmittance_rgb
 from ..pipeline import Setting, Stage, Technique
-from ..shading import light_arriving, marched_optical_depth
+from ..shading import light_arriving, marched_optical_depth, surface_through_maps
 from ..upload import SceneUploads, pinhole, scene_bounds, shadow_map_structs
 
 NAME = "light_shafts"
@@ -185,12 +184,7 @@ def shade_visible_surface(offset: int, cam: RasterView, m: Media, s: Surfaces, s
         a, b, c = triangle_at(vis.points, vis.indices, f)
         n = wp.normalize(wp.cross(b - a, c - a))
         n = wp.where(wp.dot(n, d) < 0.0, n, -n)
-        p = o + t * d + RAY_EPS * n
-        for l in range(sl.lights.shape[0]):
-            wi, e, tau = light_arriving(m, sl, l, p, n, shadow_steps)
-            cos_l = wp.dot(n, wi)
-            if cos_l > 0.0:  # to the surface and on to the camera: one exponential
-                L += cos_l * wp.cw_mul(brdf_eval(s.material[f], n, -d, wi), wp.cw_mul(e, transmittance_rgb(tau + tau_v)))
+        L = surface_through_maps(m, sl, o + t * d + RAY_EPS * n, n, -d, s.material[f], tau_v, shadow_steps)
     radiance[tid] = L
 
 

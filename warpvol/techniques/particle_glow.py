@@ -66,12 +66,11 @@ from ..geometry.raster import RasterView, pixel_ray
 from ..geometry.shadowmap import ShadowedLights, shadow_visibility
 from ..media.volume import Media, in_scatter_at, scattering_at, sigma_t_at
 from ..physics.airlight import g_table, surface_radiance
-from ..physics.brdf import brdf_eval
 from ..physics.constants import INF, PI
 from ..physics.lights import DIRECTIONAL, SPOT, ball_mean_inverse_square, spot_falloff
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Setting, Stage, Technique
-from ..shading import light_arriving
+from ..shading import light_arriving, surface_through_maps
 from ..upload import SceneUploads, pinhole, shadowed_lights
 
 NAME = "particle_glow"
@@ -228,14 +227,7 @@ def march_glow(offset: int, cam: RasterView, m: Media, s: Surfaces, sl: Shadowed
                 tr = wp.cw_mul(tr, transmittance_rgb(sig * dt))
     if hit:
         nf = wp.where(wp.dot(n, d) < 0.0, n, -n)
-        p = o + t_surf * d
-        mat = s.material[face]
-        Ls = wp.vec3(0.0)
-        for l in range(sl.lights.shape[0]):
-            wi, e, tau = light_arriving(m, sl, l, p, nf, gs.shadow_steps)
-            cos_l = wp.dot(nf, wi)
-            if cos_l > 0.0:
-                Ls += cos_l * wp.cw_mul(wp.cw_mul(brdf_eval(mat, nf, -d, wi), e), transmittance_rgb(tau))
+        Ls = surface_through_maps(m, sl, o + t_surf * d, nf, -d, s.material[face], wp.vec3(0.0), gs.shadow_steps)
         L += wp.cw_mul(tr, Ls)
     else:
         L += wp.cw_mul(tr, background)

@@ -41,7 +41,7 @@ from ..physics.lights import DIRECTIONAL, Light, light_incident, segment_mean_in
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Setting, SettingsError, Stage, Technique
 from ..shading import light_transmittance, marched_optical_depth, surface_direct
-from ..upload import SceneUploads, light_structs, pinhole, sky_light_structs
+from ..upload import SceneUploads, light_structs, lights_array, pinhole, sky_light_structs
 
 NAME = "raymarch"
 SETTINGS = {
@@ -229,10 +229,6 @@ class Raymarch(Technique):
     def _sky(self) -> list:
         return sky_light_structs(self.scene.background, self.settings["sky_samples"]) if self.scene.media else []
 
-    def _array(self, structs: list) -> wp.array:
-        return wp.array(structs, dtype=Light, device=self.device) if structs else wp.empty(0, dtype=Light,
-                                                                                            device=self.device)
-
     def stages(self):
         return self.uploads.stages() + [
             Stage("light_volume", self._bake, reads=("medium", "lights", "background"),
@@ -244,7 +240,7 @@ class Raymarch(Technique):
 
     def _bake(self):
         st = self._march_settings()
-        lights = self._array(light_structs(self.scene) + self._sky())  # baked in this order
+        lights = lights_array(light_structs(self.scene) + self._sky(), self.device)  # baked in this order
         count = lights.shape[0] * st.shadow_grid**3
         self.baked = wp.empty(count, dtype=wp.vec3, device=self.device)
         dev.launch(bake_light_transmittance, count, [self.uploads.media.struct, lights, st, self.baked], self.device)
@@ -254,7 +250,8 @@ class Raymarch(Technique):
         npix = scene.camera.width * scene.camera.height
         self.image = wp.empty(npix, dtype=wp.vec3, device=self.device)
         dev.launch(march_single_scattering, npix, [camera_view(pinhole(scene.camera)), u.media.struct, u.surfaces,
-                                                   u.lights, self._array(self._sky()), wp.vec3(*scene.background),
+                                                   u.lights, lights_array(self._sky(), self.device),
+                                                   wp.vec3(*scene.background),
                                                    self._march_settings(),
                                                    self.baked, self.image], self.device)
 
