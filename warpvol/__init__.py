@@ -14,6 +14,7 @@ _wp.config.log_level = _wp.LOG_WARNING  # no init banner, no "Module ... load" l
 
 from .api import Renderer, render, technique_names  # noqa: E402
 from .image import load_image, save_image  # noqa: E402
+from .media.grid import save_volume  # noqa: E402
 from .metrics import relative_rmse, rmse  # noqa: E402
 from .pipeline import Frame, SettingsError  # noqa: E402
 from .scene import Scene, SceneError, load_scene  # noqa: E402
@@ -21,4 +22,4 @@ from .upload import extinction_volume  # noqa: E402
 
 __version__ = "0.1.0"
 
-__all__ = ["Frame", "Renderer", "Scene", "SceneError", "SettingsError", "extinction_volume", "load_image", "load_scene", "relative_rmse", "render", "rmse", "save_image", "technique_names"]
+__all__ = ["Frame", "Renderer", "Scene", "SceneError", "SettingsError", "extinction_volume", "load_image", "load_scene", "relative_rmse", "render", "rmse", "save_image", "save_volume", "technique_names"]

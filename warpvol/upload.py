@@ -4,7 +4,7 @@ and know nothing of scenes; everything that reads a ``Scene`` to build them is h
 
 ``pinhole`` (Camera -> PinholeCamera), ``light_array`` (lights -> Light array),
 ``SurfaceBuffers`` (surfaces -> one wp.Mesh and materials), ``MediaBuffers`` (media ->
-Media struct, hash grids, BVHs), ``medium_bounds`` / ``scene_bounds``, and
+Media struct, hash grids, BVHs, NanoVDB volumes), ``medium_bounds`` / ``scene_bounds``, and
 ``extinction_volume`` (the public sampler of a scene's sigma_t).
 
 ``SceneUploads`` owns the ``Media``, ``Surfaces`` and ``Light`` buffers and declares one
@@ -23,7 +23,7 @@ from . import device as dev
 from .geometry.camera import PinholeCamera
 from .geometry.mesh import Surfaces
 from .geometry.shadowmap import ShadowedLights, ShadowMap, shadow_map_depths, shadow_map_for, texels
-from .media.grid import grid_majorant, majorant_grid
+from .media.grid import majorant_grid, volume_majorant_grid
 from .media.particles import ParticleBuffers, particle_majorant
 from .media.rbf import CUTOFF, rbf_majorant
 from .media.volume import BOX, GRID, PARTICLES, RBF, SPHERE, Media, sample_extinction
@@ -32,7 +32,7 @@ from .physics.lights import KINDS, Light
 from .physics.phase import Phase, phase_struct
 from .physics.constants import INF
 from .pipeline import SettingsError, Stage, Technique
-from .scene import load_scene
+from .scene import SceneError, load_scene
 from .scene.model import Camera, GridMedium, HomogeneousMedium, RBFMedium, Scene
 
 
@@ -214,6 +214,16 @@ def scene_bounds(scene: Scene, media: bool = True) -> tuple[np.ndarray, np.ndarr
     return np.min([b[0] for b in boxes], 0).astype(np.float64), np.max([b[1] for b in boxes], 0).astype(np.float64)
 
 
+def load_volume(path: str, device) -> wp.Volume:
+    """A NanoVDB file on the device (``wp.Volume.load_from_nvdb``); the scene loader has checked
+    it (``warpvol.scene.nanovdb``), so a failure here means the file changed since."""
+    try:
+        with open(path, "rb") as fh:
+            return wp.Volume.load_from_nvdb(fh, device=device)
+    except (OSError, RuntimeError) as exc:
+        raise SceneError(f"{path}: cannot load the NanoVDB grid: {exc} (allowed: the file as the scene loaded it)") from None
+
+
 class MediaBuffers:
     """Owns the device arrays (and hash grids) behind a ``Media`` struct."""
 
@@ -222,7 +232,11 @@ class MediaBuffers:
         majorants, grid_chunks, point_chunks, tables = [], [], [], []
         n_grid = n_points = n_table = n_majorant = 0
         point_media, majorant_chunks, majorant_dims, majorant_offset = [], [], [], []
+        self.volumes = []  # NanoVDB grids (wp.Volume), kept alive while kernels read them
+        volume_ids, volume_origin = [], []
         for m in scene.media:
+            volume_ids.append(0)
+            volume_origin.append((0, 0, 0))
             majorant_dims.append((1, 1, 1))
             majorant_offset.append(0)
             ph, values = phase_struct(m.phase, n_table)
@@ -245,13 +259,19 @@ class MediaBuffers:
                 majorants.append(np.asarray(m.sigma_t))
             elif isinstance(m, GridMedium):
                 kinds.append(int(GRID))
-                dz, dy, dx = m.density.shape
-                dims[-1], offset[-1] = (dx, dy, dz), n_grid
-                grid_chunks.append(m.density.ravel())
-                n_grid += m.density.size
+                dims[-1] = m.dims
+                if m.volume is not None:
+                    vol = load_volume(m.volume.path, device)
+                    self.volumes.append(vol)
+                    volume_ids[-1], volume_origin[-1] = vol.id, m.volume_index_min
+                    coarse = volume_majorant_grid(vol, m.volume_index_min, m.dims, m.volume.outside_leaves)
+                else:
+                    offset[-1] = n_grid
+                    grid_chunks.append(m.density.ravel())
+                    n_grid += m.density.size
+                    coarse = majorant_grid(m.density)
                 sigma.append(m.sigma_t_scale)
-                majorants.append(grid_majorant(m.density) * np.asarray(m.sigma_t_scale))
-                coarse = majorant_grid(m.density)
+                majorants.append(float(coarse.max()) * np.asarray(m.sigma_t_scale))  # = the largest sample
                 mz, my, mx = coarse.shape
                 majorant_dims[-1], majorant_offset[-1] = (mx, my, mz), n_majorant
                 majorant_chunks.append(coarse.ravel())
@@ -280,7 +300,10 @@ class MediaBuffers:
         s.phase = wp.array(phases or [Phase()], dtype=Phase, device=device)
         s.dims = wp.array(np.asarray(dims or [(1, 1, 1)], np.int32), dtype=wp.vec3i, device=device)
         s.offset = wp.array(np.asarray(offset or [0], np.int32), dtype=int, device=device)
-        s.grid_data = wp.array(np.concatenate(grid_chunks).astype(np.float32) if grid_chunks else np.zeros(1, np.float32), dtype=float, device=device)
+        grid_all = grid_chunks[0] if len(grid_chunks) == 1 else np.concatenate(grid_chunks or [np.zeros(1)])
+        s.grid_data = wp.array(grid_all.astype(np.float32, copy=False), dtype=float, device=device)  # one copy only
+        s.volume = wp.array(np.asarray(volume_ids or [0], np.uint64), dtype=wp.uint64, device=device)
+        s.volume_origin = wp.array(np.asarray(volume_origin or [(0, 0, 0)], np.int32), dtype=wp.vec3i, device=device)
         pts_all = np.concatenate(point_chunks).astype(np.float32) if n_points else np.zeros((1, 3), np.float32)
         s.points = wp.array(pts_all, dtype=wp.vec3, device=device)
         s.phase_table = wp.array(np.concatenate(tables) if tables else np.zeros(1, np.float32), dtype=float, device=device)

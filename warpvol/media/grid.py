@@ -1,8 +1,19 @@
-"""Dense extinction grids: cell-centred samples, trilinear lookup, zero outside the bounds.
+"""Density grids: cell-centred samples, trilinear lookup, zero outside the bounds.
 
-``data`` holds grids flattened with x fastest (the .npy layout [z, y, x]); sample (i, j, k)
-sits at bounds_min + (i + 0.5, j + 0.5, k + 0.5) * cell. Inside the half-cell border the
-lookup clamps to the outermost samples.
+``data`` holds dense grids flattened with x fastest (the .npy layout [z, y, x]); sample
+(i, j, k) sits at bounds_min + (i + 0.5, j + 0.5, k + 0.5) * cell. Inside the half-cell
+border the lookup clamps to the outermost samples.
+
+A NanoVDB grid (``wp.Volume``, Museth 2021) holds the same samples sparsely: voxel
+``origin`` + (i, j, k) is sample (i, j, k), its value at the voxel's centre, so Warp's
+index space is the grid's fractional sample index plus ``origin``. ``volume_trilinear``
+reads the eight voxels around a point with ``wp.volume_lookup_f`` and blends them with the
+dense lookup's arithmetic (``grid_corners``, ``trilinear_blend``): a grid and its NanoVDB
+copy give bit-identical densities, so a seeded path tracer takes the same paths through
+both. (``wp.volume_sample_f``'s LINEAR mode sums eight weights x values instead, which
+differs in the last bit, and one flipped delta-tracking decision changes a whole path.)
+Voxels outside the leaves read the background (0 for ``save_volume``'s files): empty space
+costs no memory.
 """
 
 from typing import Any
@@ -10,6 +21,7 @@ from typing import Any
 import numpy as np
 import warp as wp
 
+from .. import device as dev
 from ..geometry.intersect import inside_box
 from ..physics.constants import INF
 
@@ -20,10 +32,10 @@ def grid_value(data: wp.array(dtype=Any), offset: int, dims: wp.vec3i, ix: int, 
 
 
 @wp.func
-def grid_trilinear(data: wp.array(dtype=Any), offset: int, dims: wp.vec3i, bmin: wp.vec3, bmax: wp.vec3, x: wp.vec3):
-    """Trilinear between cell centres of a float or vec3 grid; zero outside [bmin, bmax]."""
-    if not inside_box(x, bmin, bmax):
-        return grid_value(data, offset, dims, 0, 0, 0) * 0.0  # the grid's own zero, float or vec3 (data are finite)
+def grid_corners(dims: wp.vec3i, bmin: wp.vec3, bmax: wp.vec3, x: wp.vec3):
+    """The samples a trilinear lookup at x (inside [bmin, bmax]) blends: (lower corner, upper
+    corner, weights of the upper one). Fractional sample index f = (x - bmin) / cell - 1/2,
+    clamped to [0, dims - 1]."""
     g = wp.cw_div(x - bmin, bmax - bmin)
     fx = wp.clamp(g[0] * float(dims[0]) - 0.5, 0.0, float(dims[0] - 1))
     fy = wp.clamp(g[1] * float(dims[1]) - 0.5, 0.0, float(dims[1] - 1))
@@ -31,45 +43,194 @@ def grid_trilinear(data: wp.array(dtype=Any), offset: int, dims: wp.vec3i, bmin:
     x0 = wp.min(int(fx), wp.max(dims[0] - 2, 0))
     y0 = wp.min(int(fy), wp.max(dims[1] - 2, 0))
     z0 = wp.min(int(fz), wp.max(dims[2] - 2, 0))
-    x1 = wp.min(x0 + 1, dims[0] - 1)
-    y1 = wp.min(y0 + 1, dims[1] - 1)
-    z1 = wp.min(z0 + 1, dims[2] - 1)
-    tx = fx - float(x0)
-    ty = fy - float(y0)
-    tz = fz - float(z0)
-    c00 = grid_value(data, offset, dims, x0, y0, z0) * (1.0 - tx) + grid_value(data, offset, dims, x1, y0, z0) * tx
-    c10 = grid_value(data, offset, dims, x0, y1, z0) * (1.0 - tx) + grid_value(data, offset, dims, x1, y1, z0) * tx
-    c01 = grid_value(data, offset, dims, x0, y0, z1) * (1.0 - tx) + grid_value(data, offset, dims, x1, y0, z1) * tx
-    c11 = grid_value(data, offset, dims, x0, y1, z1) * (1.0 - tx) + grid_value(data, offset, dims, x1, y1, z1) * tx
-    return (c00 * (1.0 - ty) + c10 * ty) * (1.0 - tz) + (c01 * (1.0 - ty) + c11 * ty) * tz
+    lo = wp.vec3i(x0, y0, z0)
+    hi = wp.vec3i(wp.min(x0 + 1, dims[0] - 1), wp.min(y0 + 1, dims[1] - 1), wp.min(z0 + 1, dims[2] - 1))
+    return lo, hi, wp.vec3(fx - float(x0), fy - float(y0), fz - float(z0))
 
 
-def grid_majorant(density: np.ndarray) -> float:
-    """Trilinear interpolation never exceeds the largest sample."""
-    return float(np.max(density))
+@wp.func
+def trilinear_blend(c000: Any, c100: Any, c010: Any, c110: Any, c001: Any, c101: Any, c011: Any, c111: Any,
+                    t: wp.vec3):
+    """Trilinear interpolation of eight corner values (cXYZ: 1 = upper along that axis), x first."""
+    c00 = c000 * (1.0 - t[0]) + c100 * t[0]
+    c10 = c010 * (1.0 - t[0]) + c110 * t[0]
+    c01 = c001 * (1.0 - t[0]) + c101 * t[0]
+    c11 = c011 * (1.0 - t[0]) + c111 * t[0]
+    return (c00 * (1.0 - t[1]) + c10 * t[1]) * (1.0 - t[2]) + (c01 * (1.0 - t[1]) + c11 * t[1]) * t[2]
+
+
+@wp.func
+def grid_trilinear(data: wp.array(dtype=Any), offset: int, dims: wp.vec3i, bmin: wp.vec3, bmax: wp.vec3, x: wp.vec3):
+    """Trilinear between cell centres of a float or vec3 grid; zero outside [bmin, bmax]."""
+    if not inside_box(x, bmin, bmax):
+        return grid_value(data, offset, dims, 0, 0, 0) * 0.0  # the grid's own zero, float or vec3 (data are finite)
+    a, b, t = grid_corners(dims, bmin, bmax, x)
+    return trilinear_blend(grid_value(data, offset, dims, a[0], a[1], a[2]), grid_value(data, offset, dims, b[0], a[1], a[2]),
+                           grid_value(data, offset, dims, a[0], b[1], a[2]), grid_value(data, offset, dims, b[0], b[1], a[2]),
+                           grid_value(data, offset, dims, a[0], a[1], b[2]), grid_value(data, offset, dims, b[0], a[1], b[2]),
+                           grid_value(data, offset, dims, a[0], b[1], b[2]), grid_value(data, offset, dims, b[0], b[1], b[2]),
+                           t)
+
+
+@wp.func
+def volume_trilinear(volume: wp.uint64, origin: wp.vec3i, dims: wp.vec3i, bmin: wp.vec3, bmax: wp.vec3,
+                     x: wp.vec3) -> float:
+    """``grid_trilinear`` of a float NanoVDB volume whose voxel origin + (i, j, k) is sample
+    (i, j, k) of a dims grid over [bmin, bmax]: the same corners and blend, the eight voxels read
+    in index space with ``wp.volume_lookup_f``; zero outside [bmin, bmax]."""
+    if not inside_box(x, bmin, bmax):
+        return 0.0
+    a, b, t = grid_corners(dims, bmin, bmax, x)
+    a = a + origin
+    b = b + origin
+    return trilinear_blend(wp.volume_lookup_f(volume, a[0], a[1], a[2]), wp.volume_lookup_f(volume, b[0], a[1], a[2]),
+                           wp.volume_lookup_f(volume, a[0], b[1], a[2]), wp.volume_lookup_f(volume, b[0], b[1], a[2]),
+                           wp.volume_lookup_f(volume, a[0], a[1], b[2]), wp.volume_lookup_f(volume, b[0], a[1], b[2]),
+                           wp.volume_lookup_f(volume, a[0], b[1], b[2]), wp.volume_lookup_f(volume, b[0], b[1], b[2]),
+                           t)
 
 
 #: Majorant cells per axis at most (fewer where the grid has fewer samples).
 MAJORANT_RES = 32
 
 
+def majorant_ranges(n: int, r: int) -> list[tuple[int, int]]:
+    """Per coarse cell a of r along an axis of n cell-centred samples: the first and last
+    sample whose trilinear blending support reaches into the cell, [a, a + 1) / r of the axis
+    (the lookup at fractional index f = x n - 1/2 blends samples floor(f) and floor(f) + 1)."""
+    return [(max(int(np.floor(a * n / r - 0.5)), 0), min(int(np.floor((a + 1) * n / r - 0.5)) + 1, n - 1))
+            for a in range(r)]
+
+
 def majorant_grid(density: np.ndarray, res: int = MAJORANT_RES) -> np.ndarray:
     """A rigorous bound of the trilinear density over each cell of a coarse grid over the same
     bounds: (rz, ry, rx) float32, r = min(samples, ``res``) per axis, [z, y, x] like ``density``.
-    The lookup at a point blends the samples of the cell-centre lattice around it, so a coarse
-    cell's bound is the largest sample whose blending support reaches into the cell."""
+    A coarse cell's bound is the largest sample whose blending support reaches into the cell
+    (``majorant_ranges``)."""
     out = np.asarray(density, np.float32)
     for axis in range(3):
         n = out.shape[axis]
-        r = min(n, res)
-        pieces = []
-        for a in range(r):
-            # samples blended somewhere in [a, a + 1) / r of the axis: fractional index f = x n - 0.5
-            i0 = max(int(np.floor(a * n / r - 0.5)), 0)
-            i1 = min(int(np.floor((a + 1) * n / r - 0.5)) + 1, n - 1)
-            pieces.append(np.take(out, np.arange(i0, i1 + 1), axis=axis).max(axis=axis, keepdims=True))
+        pieces = [np.take(out, np.arange(i0, i1 + 1), axis=axis).max(axis=axis, keepdims=True)
+                  for i0, i1 in majorant_ranges(n, min(n, res))]
         out = np.concatenate(pieces, axis=axis)
     return out
+
+
+@wp.kernel
+def leaf_majorant(offset: int, volume: wp.uint64, leaves: wp.array(dtype=wp.vec3i), origin: wp.vec3i,
+                  dims: wp.vec3i, cells: wp.array(dtype=wp.vec2i), first: wp.vec3i, res: wp.vec3i,
+                  out: wp.array(dtype=float)):
+    """Thread (leaf, voxel): the voxel's value into the bound of every coarse cell its sample's
+    blending support reaches (``cells[first[axis] + sample]``: that cell range per axis)."""
+    tid = wp.tid() + offset
+    s = leaves[tid / 512] + wp.vec3i((tid / 64) % 8, (tid / 8) % 8, tid % 8) - origin
+    if s[0] < 0 or s[1] < 0 or s[2] < 0 or s[0] >= dims[0] or s[1] >= dims[1] or s[2] >= dims[2]:
+        return
+    v = wp.volume_lookup_f(volume, s[0] + origin[0], s[1] + origin[1], s[2] + origin[2])
+    if v > 0.0:
+        cx = cells[first[0] + s[0]]
+        cy = cells[first[1] + s[1]]
+        cz = cells[first[2] + s[2]]
+        for k in range(cz[0], cz[1] + 1):
+            for j in range(cy[0], cy[1] + 1):
+                for i in range(cx[0], cx[1] + 1):
+                    wp.atomic_max(out, (k * res[1] + j) * res[0] + i, v)
+
+
+def volume_majorant_grid(volume: wp.Volume, origin, dims, outside: float = 0.0, res: int = MAJORANT_RES,
+                         device=None) -> np.ndarray:
+    """``majorant_grid`` of the samples of a float NanoVDB volume (voxel ``origin`` + (i, j, k)
+    is sample (i, j, k) of a ``dims`` (x, y, z) grid), at least ``outside`` (what lookups return
+    outside the leaves: tiles, background) everywhere. Visits the voxels of the active leaves
+    only, so its cost follows what the grid stores, not its bounds; equal to ``majorant_grid``
+    of the dense samples."""
+    device = device or volume.device
+    r = [min(n, res) for n in dims]
+    cells, first = [], []
+    for n, rr in zip(dims, r):  # invert the ranges: per sample, the coarse cells it reaches
+        lo, hi = np.full(n, rr, np.int32), np.full(n, -1, np.int32)
+        for a, (i0, i1) in enumerate(majorant_ranges(n, rr)):
+            lo[i0 : i1 + 1] = np.minimum(lo[i0 : i1 + 1], a)
+            hi[i0 : i1 + 1] = np.maximum(hi[i0 : i1 + 1], a)
+        first.append(sum(len(c) for c in cells))
+        cells.append(np.stack([lo, hi], 1))
+    out = wp.zeros(r[0] * r[1] * r[2], dtype=float, device=device)
+    leaves = wp.empty(volume.get_tile_count(), dtype=wp.vec3i, device=device)
+    if leaves.shape[0]:
+        volume.get_tiles(out=leaves)
+        dev.launch(leaf_majorant, leaves.shape[0] * 512,
+                   [volume.id, leaves, wp.vec3i(*origin), wp.vec3i(*dims),
+                    wp.array(np.concatenate(cells), dtype=wp.vec2i, device=device), wp.vec3i(*first), wp.vec3i(*r),
+                    out], device)
+    return np.maximum(out.numpy().reshape(r[2], r[1], r[0]), np.float32(outside))
+
+
+@wp.kernel
+def store_samples(offset: int, volume: wp.uint64, values: wp.array(dtype=float), nx: int, ny: int, z0: int):
+    """The non-zero samples of planes z0.. of a dense grid (x fastest) into the volume's voxels."""
+    tid = wp.tid() + offset
+    v = values[tid]
+    if v != 0.0:
+        wp.volume_store_f(volume, tid % nx, (tid / nx) % ny, z0 + tid / (nx * ny), v)
+
+
+def save_volume(path, density, bounds_min, bounds_max, codec: str = "none") -> str:
+    """Write a density grid as a NanoVDB file (.nvdb) that a ``type = "grid"`` medium reads
+    with ``file`` and the same bounds.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file to write.
+    density : array_like of shape (D, H, W)
+        Cell-centred samples [z, y, x] (x fastest, the .npy layout), finite, >= 0.
+    bounds_min, bounds_max : 3 numbers each
+        The box the samples fill, in scene units: sample (i, j, k) sits at
+        bounds_min + (i + 1/2, j + 1/2, k + 1/2) (bounds_max - bounds_min) / (W, H, D).
+    codec : "none" or "zip"
+        Compression of the file (Warp's ``save_to_nvdb``); zip files are smaller on disk
+        and the same in memory.
+
+    The grid is sparse: only the 8^3 leaves that hold a non-zero sample are stored, the
+    background is 0. Voxel (i, j, k) is sample (i, j, k), centred as above (index-to-world:
+    scale ``cell``, translation bounds_min + cell / 2; Warp's ``load_from_numpy`` would put
+    voxel centres on bounds_min and store every leaf of the box). Returns ``path``.
+    """
+    path = str(path)
+    a = np.asarray(density)
+    if a.ndim != 3 or a.size == 0 or a.dtype.kind not in "biuf":
+        raise ValueError(f"{path}: density of shape {a.shape} and type {a.dtype} "
+                         "(allowed: a non-empty 3-D array (D, H, W) of numbers, x fastest)")
+    lo, hi = float(a.min()), float(a.max())
+    if not (np.isfinite(lo) and np.isfinite(hi)) or lo < 0.0:
+        raise ValueError(f"{path}: density has NaN, Inf or negative values (allowed: finite values >= 0)")
+    bmin, bmax = np.asarray(bounds_min, np.float64), np.asarray(bounds_max, np.float64)
+    if bmin.shape != (3,) or bmax.shape != (3,) or not np.all(np.isfinite(bmin) & np.isfinite(bmax) & (bmax > bmin)):
+        raise ValueError(f"{path}: bounds {bmin.tolist()} to {bmax.tolist()} "
+                         "(allowed: 3 finite numbers each, bounds_max > bounds_min on every axis)")
+    if codec not in ("none", "zip"):
+        raise ValueError(f"{path}: codec {codec!r} (allowed: none | zip)")
+    nz, ny, nx = a.shape
+    cell = (bmax - bmin) / (nx, ny, nz)
+    tiles = []
+    for z0 in range(0, nz, 8):  # the leaves that hold a non-zero sample, 8 planes at a time
+        slab = np.zeros((8, -(-ny // 8) * 8, -(-nx // 8) * 8), bool)
+        part = a[z0 : z0 + 8] != 0
+        slab[: len(part), :ny, :nx] = part
+        ty, tx = np.nonzero(slab.reshape(8, slab.shape[1] // 8, 8, slab.shape[2] // 8, 8).any(axis=(0, 2, 4)))
+        tiles.append(np.stack([tx * 8, ty * 8, np.full_like(tx, z0)], 1))
+    tiles = np.concatenate(tiles).astype(np.int32)
+    if not len(tiles):  # an empty grid is still a grid: one leaf of zeros
+        tiles = np.zeros((1, 3), np.int32)
+    volume = wp.Volume.allocate_by_tiles(wp.array(tiles, dtype=wp.vec3i, device="cpu"), voxel_size=cell.tolist(),
+                                         bg_value=0.0, translation=(bmin + 0.5 * cell).tolist(), device="cpu")
+    for z0 in range(0, nz, 8):
+        planes = np.ascontiguousarray(a[z0 : z0 + 8], np.float32).ravel()
+        if np.any(planes):
+            dev.launch(store_samples, planes.size, [volume.id, wp.array(planes, dtype=float, device="cpu"), nx, ny, z0],
+                       "cpu")
+    volume.save_to_nvdb(path, codec=codec)
+    return path
 
 
 @wp.func

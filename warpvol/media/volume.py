@@ -1,7 +1,8 @@
 """All of a scene's media as one struct that kernels read, and the lookups on it.
 
 sigma_t(x) = sum_m density_m(x) * sigma_m, where density_m is 1 inside a homogeneous
-shape, the trilinear grid value, the RBF sum, or the particle overlap count, and sigma_m
+shape, the trilinear grid value (a dense array or a NanoVDB ``wp.Volume``, grid.py), the RBF
+sum, or the particle overlap count, and sigma_m
 is the medium's RGB scale (sigma_t, sigma_t_scale, peak). Majorants are rigorous bounds
 (see grid.py, rbf.py, particles.py), per medium and summed over media.
 
@@ -25,7 +26,7 @@ from ..geometry.intersect import inside_box, ray_box, ray_sphere
 from ..physics.constants import INF, SQRT2, SQRT_HALF_PI, STREAM
 from ..physics.phase import Phase, phase_eval
 from ..physics.transmittance import transmittance_rgb
-from .grid import grid_trilinear, walk_axis, walk_start
+from .grid import grid_trilinear, volume_trilinear, walk_axis, walk_start
 from .particles import particle_count
 from .rbf import CUTOFF, rbf_density
 
@@ -49,6 +50,8 @@ class Media:
     phase: wp.array(dtype=Phase)
     dims: wp.array(dtype=wp.vec3i)  # grid resolution (x, y, z)
     offset: wp.array(dtype=int)  # first entry in grid_data or points
+    volume: wp.array(dtype=wp.uint64)  # grid media: a NanoVDB wp.Volume holding the samples (0: grid_data does)
+    volume_origin: wp.array(dtype=wp.vec3i)  # its voxel that is sample (0, 0, 0)
     hash_grid: wp.array(dtype=wp.uint64)
     grid_data: wp.array(dtype=float)
     points: wp.array(dtype=wp.vec3)
@@ -78,6 +81,8 @@ def medium_density(m: Media, i: int, x: wp.vec3) -> float:
     if kind == BOX:
         return 1.0
     if kind == GRID:
+        if m.volume[i] != wp.uint64(0):
+            return volume_trilinear(m.volume[i], m.volume_origin[i], m.dims[i], lo, hi, x)
         return grid_trilinear(m.grid_data, m.offset[i], m.dims[i], lo, hi, x)
     if kind == RBF:
         return rbf_density(m.hash_grid[i], m.points, m.offset[i], m.radius[i], x)

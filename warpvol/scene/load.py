@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from . import mie, shapes
+from . import mie, nanovdb, shapes
 from .model import (
     Camera,
     GridMedium,
@@ -187,6 +187,62 @@ def _points(t: _Table, name: str, base_dir: str, what: str, alternatives: str = 
     return a
 
 
+_GRID_FILE = "a .npy file of shape (D, H, W), x fastest, or a .nvdb file (" + nanovdb.ALLOWED + ")"
+
+
+def _grid_medium(t: _Table, common: dict, base_dir: str) -> GridMedium:
+    """A grid medium from ``density`` (an array, in a dict), a .npy ``file`` or a NanoVDB ``file``."""
+    scale = t.vec3("sigma_t_scale", (1.0, 1.0, 1.0), lo=0.0, scalar_ok=True)
+    if "density" in t.data:
+        key = t.key("density")
+        try:
+            dens = np.asarray(t.raw("density"))
+        except ValueError:
+            dens = np.zeros(0, object)
+        if dens.dtype.kind not in "biuf":
+            t.fail(key, "cannot be read as numbers", "a non-empty 3-D array (D, H, W) of numbers, x fastest")
+    else:
+        key, path = t.key("file"), t.path("file", base_dir)
+        if path.lower().endswith(".nvdb") or nanovdb.is_nanovdb(path):
+            return _nanovdb_medium(t, common, path, scale)
+        dens = _load_npy(t, "file", path, _GRID_FILE)
+    if dens.ndim != 3 or dens.size == 0:
+        t.fail(key, f"density has shape {dens.shape}", "a non-empty 3-D array (D, H, W), x fastest")
+    lo, hi = float(dens.min()), float(dens.max())  # NaN propagates; no temporaries the size of the grid
+    if not (math.isfinite(lo) and math.isfinite(hi)) or lo < 0 or hi > float(np.finfo(np.float32).max):
+        t.fail(key, "density has NaN, Inf or negative values", "finite values >= 0 (float32)")
+    bmin, bmax = _grid_bounds(t)
+    return GridMedium(**common, density=dens.astype(np.float32, copy=False), bounds_min=bmin, bounds_max=bmax,
+                      sigma_t_scale=scale)
+
+
+def _grid_bounds(t: _Table, default_min=_REQUIRED, default_max=_REQUIRED):
+    bmin, bmax = t.vec3("bounds_min", default_min), t.vec3("bounds_max", default_max)
+    if any(a >= b for a, b in zip(bmin, bmax)):
+        t.fail(t.key("bounds_max"), f"{list(bmax)} is not above bounds_min {list(bmin)} on every axis",
+               "bounds_max > bounds_min component-wise")
+    return bmin, bmax
+
+
+def _nanovdb_medium(t: _Table, common: dict, path: str, scale) -> GridMedium:
+    """A grid medium over a NanoVDB file: header and values checked here with numpy (no Warp),
+    the bounds (by default the faces around the active voxels) on the grid's voxel faces."""
+    try:
+        grid = nanovdb.read_grid(path)
+    except nanovdb.NanoVDBError as exc:
+        t.fail(t.key("file"), f"{path!r} {exc.problem}", exc.allowed)
+    except OSError as exc:
+        t.fail(t.key("file"), f"cannot read {path!r}: {exc}", nanovdb.ALLOWED)
+    bmin, bmax = _grid_bounds(t, *nanovdb.active_faces(grid))
+    try:
+        first, dims = nanovdb.sample_frame(grid, bmin, bmax)
+    except nanovdb.NanoVDBError as exc:
+        which, problem = exc.problem.split(": ", 1)
+        t.fail(t.key(which), problem, exc.allowed)
+    return GridMedium(**common, density=None, bounds_min=bmin, bounds_max=bmax, sigma_t_scale=scale, volume=grid,
+                      volume_index_min=first, volume_dims=dims)
+
+
 def _camera(data, source) -> Camera:
     t = _Table(data, "camera", source)
     cam = Camera(
@@ -298,22 +354,7 @@ def _medium(data, where, source, base_dir) -> Medium:
         else:
             m.radius = t.number("radius", lo=0.0, lo_open=True)
     elif kind == "grid":
-        if "density" in t.data:  # in-memory array, from a dict
-            dens = np.asarray(t.raw("density"), dtype=np.float64)
-        else:
-            path = t.path("file", base_dir)
-            dens = _load_npy(t, "file", path, "a .npy file of shape (D, H, W)")
-        key = t.key("density" if "density" in t.data else "file")
-        if dens.ndim != 3 or dens.size == 0:
-            t.fail(key, f"density has shape {dens.shape}", "a non-empty 3-D array (D, H, W), x fastest")
-        if not np.all(np.isfinite(dens)) or np.any(dens < 0):
-            t.fail(key, "density has NaN, Inf or negative values", "finite values >= 0")
-        bmin, bmax = t.vec3("bounds_min"), t.vec3("bounds_max")
-        if any(a >= b for a, b in zip(bmin, bmax)):
-            t.fail(t.key("bounds_max"), f"{list(bmax)} is not above bounds_min {list(bmin)} on every axis",
-                   "bounds_max > bounds_min component-wise")
-        m = GridMedium(**common, density=dens.astype(np.float32), bounds_min=bmin, bounds_max=bmax,
-                       sigma_t_scale=t.vec3("sigma_t_scale", (1.0, 1.0, 1.0), lo=0.0, scalar_ok=True))
+        m = _grid_medium(t, common, base_dir)
     elif kind == "rbf":
         m = RBFMedium(**common, centers=_points(t, "centers", base_dir, "centre"),
                       radius=t.number("radius", lo=0.0, lo_open=True),

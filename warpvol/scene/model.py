@@ -73,15 +73,47 @@ class HomogeneousMedium(Medium):
 
 
 @dataclass
+class NanoVDBGrid:
+    """A float NanoVDB grid in a .nvdb file, as ``warpvol.scene.nanovdb.read_grid`` checked it:
+    where its voxels sit and what its values reach. The values stay in the file."""
+
+    path: str
+    voxel_size: Vec3  # world size of a voxel along x, y, z (the index-to-world map is a scale)
+    origin: Vec3  # world position of voxel (0, 0, 0), its centre
+    active_min: tuple[int, int, int]  # index bounding box of the active voxels, inclusive
+    active_max: tuple[int, int, int]
+    leaves: int  # 8^3 leaf nodes stored
+    voxels: int  # active voxels
+    value_max: float  # the largest value stored (voxels, tiles, background)
+    outside_leaves: float  # the largest value a lookup returns outside the leaves (tiles, background)
+    grid_bytes: int  # the grid's size in memory
+
+
+@dataclass
 class GridMedium(Medium):
-    density: np.ndarray = field(default_factory=lambda: np.zeros((1, 1, 1), np.float32))  # [z, y, x]
+    """Cell-centred density samples over [bounds_min, bounds_max] (media/grid.py): a dense array
+    ``density`` [z, y, x], or a NanoVDB grid ``volume`` whose voxel ``volume_index_min`` +
+    (i, j, k) is sample (i, j, k) of a ``volume_dims`` grid (then ``density`` is None)."""
+
+    density: np.ndarray | None = field(default_factory=lambda: np.zeros((1, 1, 1), np.float32))  # [z, y, x]
     bounds_min: Vec3 = (-1.0, -1.0, -1.0)
     bounds_max: Vec3 = (1.0, 1.0, 1.0)
     sigma_t_scale: Vec3 = (1.0, 1.0, 1.0)
+    volume: NanoVDBGrid | None = None
+    volume_index_min: tuple[int, int, int] = (0, 0, 0)
+    volume_dims: tuple[int, int, int] = (1, 1, 1)  # samples along x, y, z
 
     @property
     def type(self) -> str:
         return "grid"
+
+    @property
+    def dims(self) -> tuple[int, int, int]:
+        """Samples along x, y, z."""
+        if self.volume is not None:
+            return self.volume_dims
+        dz, dy, dx = self.density.shape
+        return dx, dy, dz
 
 
 @dataclass

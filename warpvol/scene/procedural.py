@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 
@@ -60,6 +62,44 @@ def smoke_density(n: int = 32, seed: int = 3) -> np.ndarray:
         s = 0.12 + 0.12 * (py + 1.0)
         d += np.exp(-((x - px) ** 2 + (y - py) ** 2 + (z - pz) ** 2) / (2 * s * s))
     return (d / d.max()).astype(np.float32)
+
+
+def sparse_cloud_density(n: int = 128, seed: int = 5, out: np.ndarray | None = None) -> np.ndarray:
+    """A cumulus cloud in an (n, n, n) box [z, y, x] over [-1, 1]^3, zero outside nine seeded
+    balls that fill about 5% of the box: each ball adds (1 - r^2/R^2)^2 times a smooth
+    multiplicative ripple in [0.5, 1], rounded to multiples of 1/64 (so sums stay exact in
+    float32 and the NanoVDB file zips small). Computed ball by ball inside its bounding box,
+    32 planes at a time, so n = 1024 takes seconds and memory the size of ``out`` (which must
+    hold zeros: a new array by default, or e.g. a memory-mapped .npy)."""
+    rng = np.random.default_rng(seed)
+    out = np.zeros((n, n, n), np.float32) if out is None else out
+    balls = 9
+    c = rng.uniform([-0.45, -0.12, -0.3], [0.45, 0.12, 0.3], (balls, 3))
+    c[:, 1] += 0.25 * (1.0 - np.abs(c[:, 0]) / 0.45)  # taller in the middle
+    radius = rng.uniform(0.215, 0.34, balls)
+    freq, phase = rng.uniform(3.0, 9.0, (balls, 3)), rng.uniform(0.0, 2.0 * np.pi, (balls, 3))
+    coord = (np.arange(n) + 0.5) / n * 2.0 - 1.0
+    for k in range(balls):
+        lo = np.clip(np.floor((c[k] - radius[k] + 1.0) / 2.0 * n - 0.5).astype(int), 0, n)
+        hi = np.clip(np.ceil((c[k] + radius[k] + 1.0) / 2.0 * n + 0.5).astype(int), 0, n)
+        x, y = coord[lo[0] : hi[0]], coord[lo[1] : hi[1]]
+        rx, ry = np.sin(freq[k, 0] * x + phase[k, 0]), np.sin(freq[k, 1] * y + phase[k, 1])
+        for z0 in range(lo[2], hi[2], 32):
+            z = coord[z0 : min(z0 + 32, hi[2])]
+            r2 = ((x - c[k, 0]) ** 2)[None, None, :] + ((y - c[k, 1]) ** 2)[None, :, None] + \
+                ((z - c[k, 2]) ** 2)[:, None, None]
+            ripple = 0.75 + 0.25 * rx[None, None, :] * ry[None, :, None] * \
+                np.sin(freq[k, 2] * z + phase[k, 2])[:, None, None]
+            d = np.round(np.clip(1.0 - r2 / radius[k] ** 2, 0.0, None) ** 2 * ripple * 64.0) / 64.0
+            block = out[z0 : z0 + len(z), lo[1] : hi[1], lo[0] : hi[0]]
+            np.add(block, d.astype(np.float32), out=block)
+    return out
+
+
+#: The built-in NanoVDB cloud: ``sparse_cloud_density()`` over [-1, 1]^3 written by
+#: ``warpvol.save_volume(NANOVDB_CLOUD, sparse_cloud_density(), (-1, -1, -1), (1, 1, 1), codec="zip")``
+#: (tests/test_nanovdb.py checks that it still holds exactly those samples).
+NANOVDB_CLOUD = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "nanovdb-cloud.nvdb")
 
 
 def _camera(width=160, height=120, origin=(0.0, 0.0, 3.9), target=(0.0, 0.0, 0.0), fov_y=40.0):
@@ -190,6 +230,18 @@ def dusty_lamp():
     }
 
 
+def nanovdb_cloud():
+    """A cumulus cloud stored sparsely (NanoVDB, 128^3 voxels, 5% of them occupied), under the sun and a sky."""
+    return {
+        "name": "nanovdb-cloud",
+        "background": [0.25, 0.35, 0.55],
+        "camera": _camera(origin=(0.0, 0.35, 2.6), target=(0.0, 0.1, 0.0)),
+        "lights": [{"type": "directional", "direction": [-0.6, -0.7, -0.4], "irradiance": 4.0}],
+        "media": [{"type": "grid", "file": NANOVDB_CLOUD, "bounds_min": [-1, -1, -1], "bounds_max": [1, 1, 1],
+                   "sigma_t_scale": 8.0, "albedo": 0.95, "phase": {"type": "hg", "g": 0.6}}],
+    }
+
+
 BUILTIN = {
     "fog-box": fog_box,
     "point-in-fog": point_in_fog,
@@ -200,4 +252,5 @@ BUILTIN = {
     "particle-cloud": particle_cloud,
     "colonnade-shafts": colonnade_shafts,
     "dusty-lamp": dusty_lamp,
+    "nanovdb-cloud": nanovdb_cloud,
 }
