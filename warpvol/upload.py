@@ -216,11 +216,12 @@ def scene_bounds(scene: Scene, media: bool = True) -> tuple[np.ndarray, np.ndarr
 
 def load_volume(path: str, device) -> wp.Volume:
     """A NanoVDB file on the device (``wp.Volume.load_from_nvdb``); the scene loader has checked
-    it (``warpvol.scene.nanovdb``), so a failure here means the file changed since."""
+    it (``warpvol.scene.nanovdb``), so a failure here means the file changed since. The file is
+    memory-mapped, not read: Warp slices its buffer without copying a mapping (a bytes object's
+    slices are copies), which saves two copies of the grid at the peak."""
     try:
-        with open(path, "rb") as fh:
-            return wp.Volume.load_from_nvdb(fh, device=device)
-    except (OSError, RuntimeError) as exc:
+        return wp.Volume.load_from_nvdb(np.memmap(path, np.uint8, "r"), device=device)
+    except (OSError, RuntimeError, ValueError) as exc:
         raise SceneError(f"{path}: cannot load the NanoVDB grid: {exc} (allowed: the file as the scene loaded it)") from None
 
 
