@@ -2,9 +2,12 @@
 
 A sweep is a list of independent points (parameter dicts). ``run_sweep`` measures the
 points that ``results/<sweep>/<device>.json`` does not hold yet (so an interrupted run
-resumes), shows a progress bar with ETA, and rewrites the file after every row. Points
-can be handed to any ``concurrent.futures.Executor`` (``measure_point`` is a top-level
-function of picklable arguments: a ``Sweep`` holds top-level functions), so a cluster can run them.
+resumes), shows a progress bar with ETA, and rewrites the file after every row (atomically:
+a reader sees the old file or the new one, never half of one). Points can be handed to any
+``concurrent.futures.Executor`` (``measure_point`` is a top-level function of picklable
+arguments: a ``Sweep`` holds top-level functions), so a cluster can run them: ``python -m
+warpvol bench SWEEP --workers N | --scheduler tcp://HOST:8786`` hands them to Dask
+(``warpvol.cluster``), and each row names the device and the host that measured it.
 The runner knows sweeps only through the object it is given; ``sweeps`` imports it, not the
 other way round.
 
@@ -23,9 +26,11 @@ import json
 import os
 import platform
 import re
+import socket
 import statistics
 import subprocess
 import time
+import uuid
 from dataclasses import fields, is_dataclass
 from pathlib import Path
 
@@ -34,6 +39,7 @@ import warp as wp
 from tqdm import tqdm
 
 import warpvol as wv
+from warpvol import device as dev
 
 REPO = Path(__file__).resolve().parent.parent
 CACHE = Path(os.environ.get("WARPVOL_CACHE", Path.home() / ".cache" / "warpvol"))
@@ -57,8 +63,10 @@ def device_name(device: str) -> str:
     return f"{cpu_name()}, {os.cpu_count()} cores"
 
 
-def device_slug(device: str) -> str:
-    """File name for a device's rows: ``cpu``, or the GPU's name (``nvidia-h200``)."""
+def device_slug(device: str | None) -> str:
+    """File name for a device's rows: ``cpu``, or the GPU's name (``nvidia-h200``); for None,
+    the device this process picks (``warpvol.device.pick``: a cluster's worker its own)."""
+    device = dev.pick(device)
     if not device.startswith("cuda"):
         return "cpu"
     name = wp.get_device(device).name.lower().replace("geforce ", "")
@@ -66,8 +74,27 @@ def device_slug(device: str) -> str:
 
 
 def git_commit() -> str:
-    r = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, cwd=REPO)
+    try:  # a cluster's worker may run an installed copy, without git
+        r = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, cwd=REPO)
+    except OSError:
+        return "unknown"
     return r.stdout.strip() or "unknown"
+
+
+def write_atomic(path: Path, write) -> None:
+    """Write ``path`` through ``write(binary file)`` into a temporary file beside it, then
+    rename that over ``path``: a reader (a resumed run, another worker sharing a cache) sees
+    the old file or the whole new one, and an interrupted write leaves no half file."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex}.tmp")
+    try:
+        with open(tmp, "xb") as fh:
+            write(fh)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
 
 
 class PeakMemory:
@@ -202,8 +229,7 @@ def reference_image(scene, device: str, **settings) -> tuple[np.ndarray, float]:
     image = 0.5 * (a.astype(np.float64) + b)
     se = np.abs(a.astype(np.float64) - b) / 2.0
     floor = float(np.sqrt(np.mean(se * se / (image * image + 1e-2))))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(path, image=image.astype(np.float32), floor=floor)
+    write_atomic(path, lambda fh: np.savez_compressed(fh, image=image.astype(np.float32), floor=floor))
     return image.astype(np.float32), floor
 
 
@@ -215,8 +241,7 @@ def baseline_image(scene, technique: str, device: str, **settings) -> np.ndarray
     if path.exists():
         return np.load(path)
     image = wv.render(scene, technique=technique, device=device, progress=True, **settings).image
-    path.parent.mkdir(parents=True, exist_ok=True)
-    np.save(path, image)
+    write_atomic(path, lambda fh: np.save(fh, image))
     return image
 
 
@@ -224,8 +249,8 @@ def row_key(params: dict) -> str:
     return json.dumps(params, sort_keys=True)
 
 
-def results_path(out: Path, sweep: str, device: str, quick: bool) -> Path:
-    return Path(out) / sweep / f"{device_slug(device)}{'-quick' if quick else ''}.json"
+def results_path(out: Path, sweep: str, slug: str, quick: bool) -> Path:
+    return Path(out) / sweep / f"{slug}{'-quick' if quick else ''}.json"
 
 
 def load_rows(path: Path) -> list[dict]:
@@ -235,33 +260,43 @@ def load_rows(path: Path) -> list[dict]:
 
 
 def write_rows(path: Path, sweep, rows: list[dict], command: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
     doc = {"sweep": sweep.name, "description": sweep.doc, "command": command, "rows": rows}
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps(doc, indent=1) + "\n")
-    tmp.replace(path)  # an interrupted write never leaves a half file
+    write_atomic(path, lambda fh: fh.write((json.dumps(doc, indent=1) + "\n").encode()))
 
 
-def measure_point(sweep, params: dict, device: str, quick: bool) -> dict:
-    """Measure one point of ``sweep`` (a ``sweeps.Sweep``): the row, with the common fields filled in."""
+def measure_point(sweep, params: dict, device: str | None, quick: bool) -> dict:
+    """Measure one point of ``sweep`` (a ``sweeps.Sweep``): the row, with the common fields filled in.
+
+    ``device`` None: the one this process picks (``warpvol.device.pick``). The row names the
+    device and the host it ran on (a cluster's worker, not the client)."""
+    device = dev.pick(device)
     with PeakMemory(device) as mem:
         row = sweep.measure(params, device, quick)
     row.pop("frame", None)
     return {"sweep": sweep.name, "technique": sweep.technique, "params": params, **row,
-            "peak_mem_mb": round(mem.mb, 1), "device": device_name(device), "warp": wp.config.version,
+            "peak_mem_mb": round(mem.mb, 1), "device": device_name(device), "host": socket.gethostname(),
+            "warp": wp.config.version,
             "commit": git_commit(), "paper": sweep.paper_figure(params),
             "measured": time.strftime("%Y-%m-%d %H:%M:%S")}
 
 
-def run_sweep(sweep, device: str, out: Path, quick: bool = False, executor=None, progress: bool = True,
-              command: str = "") -> Path:
-    """Measure every point of ``sweep`` not yet in its results file; return the file's path."""
-    path = results_path(out, sweep.name, device, quick)
+def run_sweep(sweep, device: str | None, out: Path, quick: bool = False, executor=None, progress: bool = True,
+              command: str = "", slug: str | None = None) -> Path:
+    """Measure every point of ``sweep`` not yet in its results file; return the file's path.
+
+    ``executor``: a ``concurrent.futures.Executor`` that runs ``measure_point`` (e.g. a Dask
+    client's): each row is written as it arrives (the file keeps the sweep's order); None: one
+    point after another here.
+    ``device`` None: each point on the device its process picks. ``slug`` names the file
+    (``<out>/<sweep>/<slug>[-quick].json``; default ``device_slug(device)``).
+    """
+    path = results_path(out, sweep.name, slug or device_slug(device), quick)
     rows = load_rows(path)
     done = {row_key(r["params"]) for r in rows}
     todo = [p for p in sweep.points(quick) if row_key(p) not in done]
     bar = tqdm(total=len(todo), desc=sweep.name, unit="point", disable=not progress)
-    command = command or f"python -m warpvol bench {sweep.name}{' --quick' if quick else ''} --device {device}"
+    command = command or (f"python -m warpvol bench {sweep.name}{' --quick' if quick else ''}"
+                          f"{f' --device {device}' if device else ''}")
     order = {row_key(p): i for i, p in enumerate(sweep.points(quick))}
 
     def keep(row):

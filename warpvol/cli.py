@@ -2,12 +2,18 @@
 
     python -m warpvol render SCENE --technique NAME --out OUT.exr [--out OUT.png] [--device cpu|cuda]
                              [--spp N] [--set key=value ...] [--timings] [--exposure EV]
+                             [--workers N | --scheduler tcp://HOST:8786]     # the reference, on Dask
     python -m warpvol bench --list | SWEEP [--quick] [--device ...] [--out results] | report [SWEEP ...]
+                            [--workers N | --scheduler tcp://HOST:8786]      # the points, on Dask
     python -m warpvol view SCENE [--screenshot FILE.png] [--technique NAME] [--set key=value ...]
     python -m warpvol scenes
 
 Each command prints its own lines and nothing else; ``--verbose`` also shows Warp's (its
 banner, module loads, a missing CUDA driver) and VTK's warnings.
+
+``--workers N`` starts a Dask ``LocalCluster`` of N worker processes here, ``--scheduler``
+joins a running cluster (``warpvol.cluster``); without either, everything runs in this process.
+Without ``--device``, each worker renders on the device it picks itself.
 
 ``--set`` takes a technique setting (``--set steps=128``) or a scene key in dotted form
 (``--set camera.width=64``, ``--set media.0.sigma_t=2``). Bad input exits with status 2
@@ -88,7 +94,17 @@ def cmd_render(args) -> int:
         settings["spp"] = args.spp
     scene = wv.load_scene(args.scene, overrides)
     t0 = time.perf_counter()
-    frame = wv.render(scene, technique=args.technique, device=args.device, progress=True, **settings)
+    if _on_cluster(args):
+        cluster = _cluster()
+        if args.technique != "reference":
+            raise SettingsError(f"{args.technique}: --workers and --scheduler split the reference's samples over a "
+                                "cluster (allowed: --technique reference)")
+        if "target_error" in settings:
+            raise SettingsError("target_error is not supported on a cluster (allowed: --spp N, or --set spp=N)")
+        with cluster.connect(args.workers, args.scheduler) as client:
+            frame = cluster.render_reference(client, scene, args.device, **settings)
+    else:
+        frame = wv.render(scene, technique=args.technique, device=args.device, progress=True, **settings)
     for out in args.out:
         wv.save_image(out, frame.image, exposure=args.exposure)
     wall = time.perf_counter() - t0
@@ -106,10 +122,26 @@ def cmd_render(args) -> int:
     return 0
 
 
+def _on_cluster(args) -> bool:
+    return args.workers is not None or args.scheduler is not None
+
+
+def _cluster():
+    """warpvol.cluster, or a one-line error where Dask is not installed."""
+    try:
+        from warpvol import cluster
+    except ModuleNotFoundError as exc:
+        if exc.name != "distributed":
+            raise
+        raise ValueError("--workers and --scheduler run on Dask, which is not installed "
+                         "(allowed: pip install 'warpvol[dask]')") from None
+    return cluster
+
+
 def cmd_bench(args) -> int:
     import os
 
-    from warpvol.bench.harness import run_sweep
+    from warpvol.bench.harness import device_slug, run_sweep
     from warpvol.bench.report import write_report
     from warpvol.bench.sweeps import SWEEPS
 
@@ -133,10 +165,24 @@ def cmd_bench(args) -> int:
         if name not in SWEEPS:
             raise ValueError(f"unknown sweep {name!r} (allowed: {', '.join(SWEEPS)}; see --list)")
         SWEEPS[name].points(args.quick)  # a sweep whose technique has not landed says so here
-    device = dev.pick(args.device)
-    for name in args.sweep:
-        path = run_sweep(SWEEPS[name], device, args.out, quick=args.quick)
-        print(f"{name}: rows in {path}; report in {write_report(args.out, name)}")
+    if not _on_cluster(args):
+        device = dev.pick(args.device)
+        for name in args.sweep:
+            path = run_sweep(SWEEPS[name], device, args.out, quick=args.quick)
+            print(f"{name}: rows in {path}; report in {write_report(args.out, name)}")
+        return 0
+    cluster = _cluster()
+    where = f" --workers {args.workers}" if args.workers is not None else f" --scheduler {args.scheduler}"
+    with cluster.connect(args.workers, args.scheduler) as client:
+        # one file for the cluster's rows: named by its workers' device when they share one
+        slugs = set(client.run(device_slug, args.device).values())
+        slug = slugs.pop() if len(slugs) == 1 else "mixed"
+        for name in args.sweep:
+            command = (f"python -m warpvol bench {name}{' --quick' if args.quick else ''}"
+                       f"{f' --device {args.device}' if args.device else ''}{where}")
+            path = run_sweep(SWEEPS[name], args.device, args.out, quick=args.quick,
+                             executor=client.get_executor(pure=False), command=command, slug=slug)
+            print(f"{name}: rows in {path}; report in {write_report(args.out, name)}")
     return 0
 
 
@@ -174,6 +220,15 @@ def cmd_scenes(args) -> int:
     return 0
 
 
+def _cluster_arguments(parser, what: str) -> None:
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("--workers", type=_integer, default=None, metavar="N",
+                       help=f"{what} a Dask LocalCluster of N worker processes started here (one thread each)")
+    group.add_argument("--scheduler", default=None, metavar="tcp://HOST:8786",
+                       help=f"{what} the Dask cluster of this scheduler (`dask scheduler`, `dask worker ADDRESS "
+                            "--nthreads 1`)")
+
+
 def main(argv: list[str] | None = None) -> int:
     from warpvol import device
     from warpvol.api import technique_names
@@ -192,6 +247,7 @@ def main(argv: list[str] | None = None) -> int:
     r.add_argument("--set", action="append", metavar="KEY=VALUE", help="technique setting or scene key override")
     r.add_argument("--exposure", type=_finite_float, default=0.0, help="PNG exposure in stops (default 0)")
     r.add_argument("--timings", action="store_true", help="print per-stage times")
+    _cluster_arguments(r, "split the reference's samples into passes on")
     r.set_defaults(func=cmd_render)
     b = sub.add_parser("bench", parents=[common], help="run a benchmark sweep, list them, or write their reports")
     b.add_argument("sweep", nargs="*", help="sweep names, or `report [SWEEP ...]` (see --list)")
@@ -199,6 +255,7 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument("--quick", action="store_true", help="a reduced sweep that finishes in seconds")
     b.add_argument("--device", default=None, help="cpu | cuda | cuda:N (default: $WARPVOL_DEVICE, else CUDA if present)")
     b.add_argument("--out", default="results", help="results folder (default: results)")
+    _cluster_arguments(b, "run the sweep's points as tasks on")
     b.set_defaults(func=cmd_bench)
     v = sub.add_parser("view", parents=[common], help="look at a scene in pyvista: media, lights, surfaces, camera")
     v.add_argument("scene", help="a .toml scene file or a built-in scene name")
