@@ -150,10 +150,12 @@ def readme(data: dict) -> str:
         "with numpy) and its majorant grid (`volume_majorant_grid`: one thread per voxel of an active leaf, an "
         "atomic max into the 32^3 coarse cells its sample reaches, equal to the dense `majorant_grid`) follow the "
         "occupied voxels, while the dense grid reads, copies and scans the whole box: that is the load and upload "
-        "columns. Rendering then costs the same for both: delta and ratio tracking walk the same 32^3 majorant "
-        "grid, where an empty coarse cell (majorant 0) costs one DDA step per ray, and each density lookup reads "
-        "eight samples (dense: array reads; NanoVDB: `wp.volume_lookup_f`, a descent from the root to the leaf "
-        "each), which is the raymarch and reference columns; the images are bit for bit the same.",
+        "columns. Rendering does the same work for both: delta and ratio tracking walk the same 32^3 majorant "
+        "grid, where an empty coarse cell (majorant 0) costs one DDA step per ray, so the work follows the "
+        "occupied coarse cells and the settings, not the box; each density lookup reads eight samples (dense: "
+        "array reads; NanoVDB: `wp.volume_lookup_f`, a descent from the root to the leaf each). The raymarch and "
+        "reference columns differ only by how those reads hit the caches (the dense 1024^3 grid is 4 GB); the "
+        "images are bit for bit the same.",
     ]
     return "\n".join(lines) + "\n"
 
