@@ -90,8 +90,6 @@ def write_atomic(path: Path, write) -> None:
     try:
         with open(tmp, "xb") as fh:
             write(fh)
-            fh.flush()
-            os.fsync(fh.fileno())
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)

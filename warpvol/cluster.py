@@ -40,8 +40,8 @@ from .pipeline import Frame, StageRun, resolve_settings
 #: of them than a slow one, and a lost worker takes a small share of the image with it.
 PASSES_PER_THREAD = 4
 
-#: How long a client waits for the first worker of a cluster it connects to, in seconds.
-WORKER_WAIT_S = 60.0
+#: How long a client tries to reach a scheduler, and then waits for its first worker, in seconds.
+CONNECT_S, WORKER_WAIT_S = 10.0, 60.0
 
 
 @contextlib.contextmanager
@@ -57,7 +57,7 @@ def connect(workers: int | None = None, scheduler: str | None = None, gpus: int 
         raise ValueError("give workers (a LocalCluster here) or scheduler (tcp://HOST:8786), not both")
     if scheduler is not None:
         try:
-            client = Client(scheduler, timeout=WORKER_WAIT_S)
+            client = Client(scheduler, timeout=CONNECT_S)
         except OSError as exc:
             raise ValueError(f"cannot reach the Dask scheduler at {scheduler} ({exc}; start one with "
                              f"`dask scheduler` and workers with `dask worker {scheduler} --nthreads 1`)") from None
