@@ -43,9 +43,10 @@ def random_scene(seed: int) -> dict:
 
 def test_raymarch_meets_its_target_on_random_scenes():
     """12 seeded scenes, target 0.01: the true error (against 512 steps) is at most the target
-    in at least 90% of them (measured: all 12). The estimate is not yet within 2x of the truth
-    everywhere (measured: 0.17x to 2.9x; far below the target, the levels' differences stop
-    converging geometrically), so only its coverage is asserted."""
+    in at least 90% of them (measured: all 12). The estimate is not within 2x of the truth
+    everywhere (measured against a per-pixel extrapolation of 256, 512 and 1024 steps: 0.22x to
+    3.4x, 9 of 12 within 2x; the misses are pre-asymptotic: at 8 to 32 steps the levels'
+    differences do not yet shrink geometrically), so only its coverage is asserted."""
     target, met = 0.01, 0
     for seed in range(12):
         scene = random_scene(seed)
@@ -74,6 +75,46 @@ def test_light_shafts_meets_its_target_on_random_scenes():
     assert met >= 9, met
 
 
+def random_cloud(seed: int) -> dict:
+    """A seeded particle cloud (what illumination_network takes): 60 to 200 spheres, sun or
+    point light, a sky or none."""
+    rng = np.random.default_rng(100 + seed)
+    n = int(rng.integers(60, 200))
+    light = ({"type": "directional", "direction": (rng.normal(size=3) - [0, 2, 0]).tolist(),
+              "irradiance": float(rng.uniform(1, 4))} if rng.random() < 0.5 else
+             {"type": "point", "position": rng.uniform(-1.5, 1.5, 3).tolist(), "intensity": float(rng.uniform(2, 8))})
+    return {"name": f"random-cloud-{seed}", "background": rng.uniform(0, 0.4, 3).tolist() if rng.random() < 0.7 else [0, 0, 0],
+            "camera": {"origin": [0.0, 0.0, 3.0], "target": [0, 0, 0], "fov_y": 40.0, "width": 16, "height": 12},
+            "lights": [light],
+            "media": [{"type": "particles", "positions": rng.uniform(-0.6, 0.6, (n, 3)).tolist(),
+                       "radius": float(rng.uniform(0.1, 0.2)), "sigma_t": float(10 ** rng.uniform(0, 0.8)),
+                       "albedo": float(rng.uniform(0.5, 0.99)), "phase": {"type": "hg", "g": float(rng.uniform(0, 0.7))}}]}
+
+
+def test_illumination_network_meets_its_target_on_random_clouds():
+    """Its converged answer's error is the directions' quadrature: each level averages two
+    randomly turned Fibonacci sets (direction_seed 1 and 2: their spread is the random part) and
+    successive levels give the systematic part (order 1 in D). The window is held at the default
+    D's (window_at = 128): by the paper's rule it grows with D and moves the answer (random cloud
+    0: the image mean falls 12% a doubling up to D = 1024; held, it stays within 0.1%). The
+    truth: two other turned sets of 1024 directions, same window. At target 0.03 the truth meets
+    it, and the estimate is within 2x of the truth, in at least 90% of the clouds (measured: 4 of
+    4; the estimate 0.98x to 1.6x the truth)."""
+    met = within = 0
+    for seed in range(4):
+        scene = random_cloud(seed)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            frame = wv.render(scene, "illumination_network", device="cpu", target_error=0.03)
+        assert frame.settings["direction_seed"] == "1 and 2, averaged" and frame.settings["window_at"] == 128
+        fine = [wv.render(scene, "illumination_network", device="cpu", directions=1024, direction_seed=k,
+                          window_at=128).image for k in (3, 4)]
+        truth = wv.relative_rmse(frame.image, 0.5 * (fine[0] + fine[1]))
+        met += frame.error_estimate <= 0.03 and truth <= 0.03
+        within += 0.5 <= frame.error_estimate / truth <= 2.0
+    assert met >= 0.9 * 4 and within >= 0.9 * 4, (met, within)
+
+
 def test_the_reference_stops_at_its_noise():
     """The reference's estimate is the relative standard error of two independent halves; a
     tighter target takes more samples and reports a smaller estimate."""
@@ -89,8 +130,8 @@ def test_target_error_errors_name_the_key():
         wv.render("fog-box", "raymarch", device="cpu", target_error=2)
     with pytest.raises(SettingsError, match="not both"):
         wv.render("fog-box", "raymarch", device="cpu", target_error=0.1, steps=16)
-    with pytest.raises(SettingsError, match="not supported yet"):
-        wv.render("particle-cloud", "illumination_network", device="cpu", target_error=0.1)
+    with pytest.raises(SettingsError, match="not both"):
+        wv.render("particle-cloud", "illumination_network", device="cpu", target_error=0.1, direction_seed=3)
 
 
 def test_auto_picks_the_fastest_technique_that_meets_the_target():

@@ -141,42 +141,60 @@ def _render_to_target(scene, technique: str, device, progress: bool, target: flo
         raise SettingsError(f"{technique}: give target_error or {knob}, not both (target_error chooses {knob})")
     from .metrics import relative_rmse
 
-    if knob == "spp":  # Monte Carlo: the standard error of two independent halves
-        spp = max(1, start // 2)
+    settings = {**getattr(cls, "QUALITY_HOLD", {}), **settings}
+    seed = getattr(cls, "QUALITY_SEED", None)
+    if seed is not None and seed in settings:
+        raise SettingsError(f"{technique}: give target_error or {seed}, not both (target_error draws two)")
+
+    def two_seeds(level):
+        """The mean of two independent answers at ``level`` and its relative standard error."""
+        a = render(scene, technique, device, progress, **{**settings, knob: level, **{k: level for k in tied}, seed: 1})
+        b = render(scene, technique, device, progress, **{**settings, knob: level, **{k: level for k in tied}, seed: 2})
+        ia, ib = a.image.astype(np.float64), b.image.astype(np.float64)
+        mean = 0.5 * (ia + ib)
+        frame = Frame(mean.astype(np.float32), a.shape, a.technique, a.device, {**a.settings, seed: "1 and 2, averaged"},
+                      a.stages, a.leaves_out)
+        return frame, mean, relative_rmse(mean + 0.5 * np.abs(ia - ib), mean)
+
+    if knob == "spp":  # Monte Carlo, unbiased: the estimate is the standard error of two runs' mean
+        level, limit = max(1, start // 2), top // 2  # samples of each run
         while True:
-            a = render(scene, technique, device, progress, **{**settings, "spp": spp, "seed": 1})
-            b = render(scene, technique, device, progress, **{**settings, "spp": spp, "seed": 2})
-            ia, ib = a.image.astype(np.float64), b.image.astype(np.float64)
-            mean = 0.5 * (ia + ib)
-            estimate = relative_rmse(mean + 0.5 * np.abs(ia - ib), mean)  # the mean's standard error, relative
-            if estimate <= target or 2 * spp >= top:
+            frame, _, estimate = two_seeds(level)
+            if estimate <= target or level >= limit:
                 break
-            spp = min(top // 2, int(spp * max(2.0, (estimate / target) ** 2)))
-        out = Frame(mean.astype(np.float32), a.shape, a.technique, a.device, {**a.settings, "spp": 2 * spp},
-                    a.stages, a.leaves_out)
-        out.error_estimate = estimate
-        if estimate > target:
-            warnings.warn(f"{technique}: error estimate {estimate:.3g} above target_error {target:.3g} at {knob} = "
-                          f"{2 * spp} (the most it may use)", RuntimeWarning, stacklevel=3)
-        return out
-    r = Renderer(scene, technique, device, progress, **{**settings, knob: start, **{k: start for k in tied}})
-    r.technique.one_shot = True
-    level, images, frame = start, [], None
-    while True:
-        frame = r.render()
-        images.append(frame.image.astype(np.float64))
-        estimate = float("inf")
-        if len(images) >= 3:
-            d1 = relative_rmse(images[-3], images[-2])
-            d2 = relative_rmse(images[-2], images[-1])
-            # geometric convergence, e_2k = r e_k: what the levels still have to go is d2 r / (1 - r);
-            # r observed, but not below the knob's nominal rate 2^-order (a lucky cancellation)
-            ratio = min(max(d2 / d1 if d1 > 0.0 else 0.0, 0.5**order), 0.95)
-            estimate = d2 * ratio / (1.0 - ratio)
-        if estimate <= target or 2 * level > top:
-            break
-        level *= 2
-        r.update(settings={knob: level, **{k: level for k in tied}})
+            # the error falls as spp^-1/2: jump to the count the target needs
+            level = min(limit, int(level * max(2.0, (estimate / target) ** (1.0 / order))))
+        frame.settings[knob] = level = 2 * level
+    else:
+        r = None
+        if seed is None:
+            r = Renderer(scene, technique, device, progress, **{**settings, knob: start, **{k: start for k in tied}})
+            r.technique.one_shot = True
+        level, images, spreads, frame = start, [], [], None
+        while True:
+            if r is not None:
+                frame = r.render()
+                images.append(frame.image.astype(np.float64))
+                spreads.append(0.0)
+            else:  # seeded (jitter, turned directions): each level is the mean of two seeds
+                frame, mean, spread = two_seeds(level)
+                images.append(mean)
+                spreads.append(spread)
+            estimate = float("inf")
+            if len(images) >= 3:
+                # the levels' systematic differences: the noise of the two means taken out
+                s0, s1, s2 = (x * x for x in spreads[-3:])
+                d1 = np.sqrt(max(relative_rmse(images[-3], images[-2]) ** 2 - s0 - s1, 0.0))
+                d2 = np.sqrt(max(relative_rmse(images[-2], images[-1]) ** 2 - s1 - s2, 0.0))
+                # geometric convergence, e_2k = r e_k: what the levels still have to go is d2 r / (1 - r);
+                # r observed, but not below the knob's nominal rate 2^-order (a lucky cancellation)
+                ratio = min(max(d2 / d1 if d1 > 0.0 else 0.0, 0.5**order), 0.95)
+                estimate = float(np.hypot(d2 * ratio / (1.0 - ratio), spreads[-1]))
+            if estimate <= target or 2 * level > top:
+                break
+            level *= 2
+            if r is not None:
+                r.update(settings={knob: level, **{k: level for k in tied}})
     frame.error_estimate = estimate
     if estimate > target:
         warnings.warn(f"{technique}: error estimate {estimate:.3g} above target_error {target:.3g} at {knob} = {level} "
@@ -242,13 +260,16 @@ def render(scene, technique: str = "reference", device: str | None = None, progr
 
     ``target_error`` (0..1): the relative RMSE (``metrics.relative_rmse``) the image may have
     against the technique's own converged answer (its discretisation, not its model: see
-    ``frame.leaves_out``). The technique's quality knob (``Technique.QUALITY``: raymarch, light_shafts and
-    particle_glow steps, rbf_propagation grid, depth_impostors slices, reference spp) is
-    doubled from its start; the error of the finest image is estimated from the last three
-    levels, assuming geometric convergence (e_2k = r e_k: estimate d2 r / (1 - r) with d the
-    differences of successive levels and r = d2 / d1), or for the reference from two
-    independent halves of the samples. ``frame.error_estimate`` holds it; above the target
-    at the knob's limit, a warning.
+    ``frame.leaves_out``). The technique's quality knob (``Technique.QUALITY``: raymarch,
+    light_shafts and particle_glow steps, rbf_propagation grid, depth_impostors slices,
+    illumination_network directions, reference spp) is doubled from its start; the error of
+    the finest image is estimated from the last three levels, assuming geometric convergence
+    (e_2k = r e_k: estimate d2 r / (1 - r) with d the differences of successive levels and
+    r = d2 / d1, not below the knob's nominal 2^-order). Where a seed gives independent answers
+    of one quality (``Technique.QUALITY_SEED``) each level is the mean of two seeds and their
+    standard error is part of the estimate (illumination_network: turned direction sets, the
+    window held at the default D's); for the reference, unbiased, it is the whole estimate.
+    ``frame.error_estimate`` holds it; above the target at the knob's limit, a warning.
 
     ``technique="auto"`` (with ``target_error``, against the physical answer, all orders of
     scattering): the fastest technique whose measured error on the scene's family meets it

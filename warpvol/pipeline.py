@@ -135,6 +135,14 @@ class Technique:
     #: what ``render(target_error=...)`` doubles; None: target_error is not supported.
     QUALITY: tuple | None = None
 
+    #: A seed setting whose values give independent answers of the same quality (Monte Carlo
+    #: samples, turned direction sets): ``target_error`` then estimates the error from the spread
+    #: of two seeds at one level instead of from successive levels. None: levels.
+    QUALITY_SEED: str | None = None
+
+    #: Settings ``target_error`` holds at these values (unless given) while it raises the knob.
+    QUALITY_HOLD: dict = {}
+
     #: Set by ``warpvol.render``: the frame is the only one, so an iterative technique runs to
     #: convergence instead of its per-frame iterations (a ``Renderer`` keeps the paper's loop).
     one_shot: bool = False

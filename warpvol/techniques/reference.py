@@ -296,6 +296,7 @@ class Reference(Technique):
     NAME = NAME
     SETTINGS = SETTINGS
     QUALITY = ("spp", 16, 1 << 20, (), 0.5)
+    QUALITY_SEED = "seed"  # the error estimate: two runs of independent samples
     LEAVES_OUT = ()
     GATHERS_SKY = True
 
