@@ -89,7 +89,7 @@ def _grid_buffer(path: str) -> np.ndarray:
     size = os.path.getsize(path)
     if size < FILE_HEADER:
         raise NanoVDBError(f"is truncated: {size} bytes, less than a NanoVDB file header")
-    data = np.memmap(path, np.uint8, "r") if size else np.zeros(0, np.uint8)
+    data = np.memmap(path, np.uint8, "r")
     magic = int(_u(data, 0, "<u8")[0])
     version, grid_count, codec = int(_u(data, 8, "<u4")[0]), int(_u(data, 12, "<u2")[0]), int(_u(data, 14, "<u2")[0])
     if magic not in MAGIC_FILE:
