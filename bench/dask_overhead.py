@@ -73,7 +73,7 @@ def _timed_sweep(sweep: Sweep, executor) -> tuple[float, float]:
 
 def measure(points: int, seconds: float, repeats: int) -> dict:
     _render_seconds(4)  # Warp's module load, out of every number below
-    spp = max(1, round(16 * seconds / statistics.median(_render_seconds(16) for _ in range(3))))
+    spp = max(1, round(64 * seconds / statistics.median(_render_seconds(64) for _ in range(3))))
     sweep = _sweep(points, spp)
     t0 = time.perf_counter()
     with cluster.connect(workers=1) as client:
