@@ -114,7 +114,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeats", type=int, default=10, help="alternations of the two ways (default 10)")
     parser.add_argument("--out", default="results/dask-overhead")
     args = parser.parse_args(argv)
-    doc = {"command": "python -m bench.dask_overhead " + " ".join(argv if argv is not None else sys.argv[1:]),
+    doc = {"command": " ".join(["python -m bench.dask_overhead", *(argv if argv is not None else sys.argv[1:])]),
            "machine": {"cpu": cpu_name(), "cores": os.cpu_count(), "python": platform.python_version(),
                        "load_average_before": [round(x, 2) for x in os.getloadavg()]},
            "warp": wp.config.version, "distributed": distributed.__version__, "commit": git_commit(),
