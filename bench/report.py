@@ -339,7 +339,7 @@ def write_model_error(rows: list[dict]) -> None:
     families: dict = {}
     for r in rows:
         p = r["params"]
-        if p["technique"] == "reference":
+        if p["technique"] in ("reference", "mitsuba"):  # the fallback and a yardstick, not techniques
             continue
         family = families.setdefault(p["family"], {"media": r.get("media", []), "techniques": {}})
         best = family["techniques"].get(p["technique"])
@@ -381,7 +381,8 @@ def front_section(rows: list[dict], png: Path) -> list[str]:
     fig.tight_layout()
     fig.savefig(png, dpi=110)
     plt.close(fig)
-    write_model_error(rows)
+    if not png.stem.endswith("-quick"):  # a quick sweep's tiny images do not speak for the families
+        write_model_error(rows)
     floor = rows[0]["reference"]["rel_rmse_floor"]
     lines += ["", "`technique=\"auto\"` reads the best error and its time per family and technique from "
               "`warpvol/model_error.json`, written with this page.",

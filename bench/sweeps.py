@@ -85,15 +85,15 @@ def _raymarch_grid(quick: bool) -> list[dict]:
     return [{"steps": s, "shadow_grid": g} for g, s in itertools.product(grids, steps)]
 
 
-def score(row: dict, scene, device: str, spp: int, max_bounces: int = 1) -> np.ndarray:
+def score(row: dict, scene, device: str, spp: int, max_bounces: int = 1, pixel_area: int = 0) -> np.ndarray:
     """Add to ``row`` the relative RMSE of its frame against the reference at pixel centres
     (``max_bounces`` 1: single scattering, what the real-time techniques compute, without
     their error; two seeds of ``spp``), raw and with the reference's own noise removed: that
     noise adds in quadrature, E[err^2 to a noisy ref] = err^2 + floor^2. Returns the reference."""
-    ref, floor = reference_image(scene, device, spp=spp, max_bounces=max_bounces, pixel_area=0)
+    ref, floor = reference_image(scene, device, spp=spp, max_bounces=max_bounces, pixel_area=pixel_area)
     row["rel_rmse"] = wv.relative_rmse(row["frame"].image, ref)
     row["rel_rmse_corrected"] = max(row["rel_rmse"] ** 2 - floor**2, 0.0) ** 0.5
-    row["reference"] = {"spp": 2 * spp, "max_bounces": max_bounces, "pixel_area": 0, "rel_rmse_floor": floor}
+    row["reference"] = {"spp": 2 * spp, "max_bounces": max_bounces, "pixel_area": pixel_area, "rel_rmse_floor": floor}
     row["scene"] = f"{scene.name} {scene.camera.width}x{scene.camera.height}"
     return ref
 
@@ -980,31 +980,45 @@ def _glow_stability(params: dict, device: str, quick: bool) -> dict:
 
 # --- every technique on one front ---------------------------------------------------------------
 
-FRONT_FAMILIES = {"fog and occluders": "fog-box", "haze under a sky": "scenes/sunlit-haze.toml", "grid": "smoke-grid",
-                  "RBF": "rbf-single", "particles": "particle-cloud"}
+# family -> a scene (built-in name or file) and its overrides
+FRONT_FAMILIES = {"fog and occluders": ("fog-box", []), "haze under a sky": ("scenes/sunlit-haze.toml", []),
+                  "thin haze": ("scenes/sunlit-haze.toml", ["media.0.sigma_t=0.15"]),
+                  "thick haze": ("scenes/sunlit-haze.toml", ["media.0.sigma_t=5"]),
+                  "light inside fog": ("point-in-fog", []), "grid": ("smoke-grid", []), "RBF": ("rbf-single", []),
+                  "particles": ("particle-cloud", [])}
 FRONT_LADDERS = {"reference": ("spp", (4, 16, 64, 256)), "raymarch": ("steps", (8, 32, 128)),
                  "light_shafts": ("steps", (16, 64, 256)), "rbf_propagation": ("grid", (10, 20, 40)),
                  "particle_glow": ("steps", (32, 128)), "illumination_network": ("directions", (32, 128)),
-                 "depth_impostors": ("slices", (4, 16))}
+                 "depth_impostors": ("slices", (4, 16)), "mitsuba": ("spp", (4, 16, 64, 256))}
 FRONT_SIZE = (64, 48)
 
 
 def front_scene(family: str, quick: bool):
     w, h = (16, 12) if quick else FRONT_SIZE
-    return wv.load_scene(FRONT_FAMILIES[family], [f"camera.width={w}", f"camera.height={h}"])
+    source, overrides = FRONT_FAMILIES[family]
+    return wv.load_scene(source, [f"camera.width={w}", f"camera.height={h}", *overrides])
 
 
 def _front_grid(quick: bool) -> list[dict]:
     """Every (family, technique, level) a technique can render: those whose Renderer accepts
-    the scene (a technique refuses a medium it does not model)."""
+    the scene (a technique refuses a medium it does not model); Mitsuba 3 (volpath, all orders)
+    where it is installed and the scene has homogeneous media only (``to_mitsuba``), not in a
+    quick sweep."""
+    import importlib.util
+
     out = []
     for family in FRONT_FAMILIES:
         scene = front_scene(family, quick)
         for technique, (knob, levels) in FRONT_LADDERS.items():
-            try:
-                wv.Renderer(scene, technique=technique, device="cpu")
-            except (wv.SettingsError, ValueError):
-                continue
+            if technique == "mitsuba":
+                if quick or importlib.util.find_spec("mitsuba") is None or \
+                        any(m.type != "homogeneous" for m in scene.media):
+                    continue
+            else:
+                try:
+                    wv.Renderer(scene, technique=technique, device="cpu")
+                except (wv.SettingsError, ValueError):
+                    continue
             out += [{"family": family, "technique": technique, knob: v} for v in (levels[:1] if quick else levels)]
     return out
 
@@ -1013,18 +1027,28 @@ def _front(params: dict, device: str, quick: bool) -> dict:
     """One technique at one quality level against the physical answer (the reference, all
     orders of scattering, sky included; two seeds of 2048 spp): relative RMSE with the
     reference's noise removed, and the time of a whole frame (every stage run). Iterative
-    techniques run to convergence in the frame (illumination_network: up to 2000 iterations)."""
+    techniques run to convergence in the frame (illumination_network: up to 2000 iterations).
+    Mitsuba 3 (its llvm_ad_rgb variant where its LLVM loads, else scalar_rgb; a pixel-area
+    box filter) against the reference over pixel areas, its time after a warm-up render."""
     family, technique = params["family"], params["technique"]
     knob = FRONT_LADDERS[technique][0]
     scene = front_scene(family, quick)
-    settings = {knob: params[knob]}
-    if technique == "illumination_network":  # converged in every timed frame, from zero each time
-        settings.update(iterations=2000, warm=0)
-    r = wv.Renderer(scene, technique=technique, device=device, **settings)
-    row = time_frames(r, repeats=1 if quick else 2)
-    ref = score(row, scene, device, 16 if quick else 2048, max_bounces=-1)
+    if technique == "mitsuba":
+        run = mitsuba_time(scene, params["spp"], image=True)
+        frame = wv.Frame(run["image"], run["image"].shape[:2], f"mitsuba {run['variant']}", "cpu", {}, {}, [])
+        row = {"first_frame_ms": None, "median_ms": 1000.0 * run["seconds"], "frames": 1, "stages": {},
+               "frame": frame, "variant": run["variant"]}
+        ref = score(row, scene, device, 16 if quick else 2048, max_bounces=-1, pixel_area=1)
+        row["leaves_out"] = []
+    else:
+        settings = {knob: params[knob]}
+        if technique == "illumination_network":  # converged in every timed frame, from zero each time
+            settings.update(iterations=2000, warm=0)
+        r = wv.Renderer(scene, technique=technique, device=device, **settings)
+        row = time_frames(r, repeats=1 if quick else 2)
+        ref = score(row, scene, device, 16 if quick else 2048, max_bounces=-1)
+        row["leaves_out"] = row["frame"].leaves_out
     row["mean_ratio"] = float(row["frame"].image.mean() / ref.mean())
-    row["leaves_out"] = row["frame"].leaves_out
     row["media"] = sorted({m.type for m in scene.media})
     row["scene"] = f"{scene.name} {scene.camera.width}x{scene.camera.height}"
     return row
@@ -1059,7 +1083,7 @@ import pickle, sys, time
 import numpy as np
 import mitsuba as mi
 from warpvol.scene import to_mitsuba
-variant, scene, spp = pickle.load(sys.stdin.buffer)
+variant, scene, spp, keep = pickle.load(sys.stdin.buffer)
 mi.set_variant(variant)
 try:
     description = to_mitsuba(scene, spp=spp)
@@ -1069,15 +1093,19 @@ scene = mi.load_dict(description)
 mi.render(scene, spp=1)  # JIT and set-up
 t = time.perf_counter()
 image = np.array(mi.render(scene, spp=spp))
-print(time.perf_counter() - t, float(image.mean()))
+seconds = time.perf_counter() - t
+if keep:
+    np.save(keep, image.astype(np.float32))
+print(seconds, float(image.mean()))
 """
 
 
-def mitsuba_time(scene, spp: int) -> dict | None:
+def mitsuba_time(scene, spp: int, image: bool = False) -> dict | None:
     """Mitsuba 3 volpath on the same scene and spp, in a child process (a variant whose LLVM
     does not fit the machine aborts the process): llvm_ad_rgb, else scalar_rgb. Seconds after
-    a warm-up render, the image mean and the variant; None when Mitsuba is missing or cannot
-    render the scene (``to_mitsuba`` exports homogeneous media only)."""
+    a warm-up render, the image mean (and with ``image`` the image, H x W x 3) and the variant;
+    None when Mitsuba is missing or cannot render the scene (``to_mitsuba`` exports homogeneous
+    media only)."""
     import glob
     import importlib.util
     import os
@@ -1092,14 +1120,21 @@ def mitsuba_time(scene, spp: int) -> dict | None:
         found = sorted(glob.glob("/usr/lib/*/libLLVM-19.so") + glob.glob("/usr/lib/*/libLLVM-2[0-9].so"))
         if found:
             env["DRJIT_LIBLLVM_PATH"] = found[-1]
-    for variant in ("llvm_ad_rgb", "scalar_rgb"):
-        run = subprocess.run([sys.executable, "-c", _MITSUBA_RUN], input=pickle.dumps((variant, scene, spp)),
-                             capture_output=True, timeout=3600, env=env)
-        if run.returncode == 3:
-            return None
-        if run.returncode == 0:
-            seconds, mean = (float(v) for v in run.stdout.split()[-2:])
-            return {"variant": variant, "seconds": seconds, "mean": mean}
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix="warpvol-mitsuba-") as tmp:
+        keep = os.path.join(tmp, "image.npy") if image else ""
+        for variant in ("llvm_ad_rgb", "scalar_rgb"):
+            run = subprocess.run([sys.executable, "-c", _MITSUBA_RUN], input=pickle.dumps((variant, scene, spp, keep)),
+                                 capture_output=True, timeout=3600, env=env)
+            if run.returncode == 3:
+                return None
+            if run.returncode == 0:
+                seconds, mean = (float(v) for v in run.stdout.split()[-2:])
+                out = {"variant": variant, "seconds": seconds, "mean": mean}
+                if image:
+                    out["image"] = np.load(keep)
+                return out
     return None
 
 
