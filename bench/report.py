@@ -357,6 +357,8 @@ def front_section(rows: list[dict], png: Path) -> list[str]:
     time, one line per technique on a log-log plot, and the table."""
     families = list(dict.fromkeys(r["params"]["family"] for r in rows))
     plt = _plt()
+    techniques = list(dict.fromkeys(r["params"]["technique"] for r in rows))
+    colour = {t: plt.get_cmap("tab10")(i % 10) for i, t in enumerate(techniques)}  # one colour a technique, every panel
     cols = min(2, len(families))
     fig, axes = plt.subplots(-(-len(families) // cols), cols, figsize=(6.0 * cols, 4.2 * -(-len(families) // cols)),
                              squeeze=False)
@@ -367,7 +369,7 @@ def front_section(rows: list[dict], png: Path) -> list[str]:
         for technique in dict.fromkeys(r["params"]["technique"] for r in rs):
             t_rows = [r for r in rs if r["params"]["technique"] == technique]
             ax.plot([r["median_ms"] for r in t_rows], [max(r["rel_rmse_corrected"], 1e-4) for r in t_rows], "o-", ms=4,
-                    label=technique)
+                    label=technique, color=colour[technique])
         ax.set(xscale="log", yscale="log", xlabel="ms per frame", ylabel="relative RMSE vs the physical answer",
                title=f"{family} ({rs[0]['scene']})")
         ax.legend(fontsize=7)

@@ -5,40 +5,11 @@ the same technique."""
 
 import warnings
 
-import numpy as np
 import pytest
 
 import warpvol as wv
 from warpvol.pipeline import SettingsError
-
-
-def random_scene(seed: int) -> dict:
-    rng = np.random.default_rng(seed)
-    if rng.random() < 0.5:
-        shape = str(rng.choice(["box", "sphere"]))
-        medium = {"type": "homogeneous", "shape": shape, "center": rng.uniform(-0.2, 0.2, 3).tolist(),
-                  "sigma_t": float(10 ** rng.uniform(-1, 0.7)), "albedo": float(rng.uniform(0.3, 1.0)),
-                  "phase": {"type": "hg", "g": float(rng.uniform(-0.5, 0.8))}}
-        if shape == "box":
-            medium["size"] = rng.uniform(0.8, 2.0, 3).tolist()
-        else:
-            medium["radius"] = float(rng.uniform(0.6, 1.2))
-    else:
-        n = int(rng.integers(4, 12))
-        medium = {"type": "grid", "density": rng.uniform(0, 1, (n, n, n)).astype(np.float32),
-                  "bounds_min": [-1, -1, -1], "bounds_max": [1, 1, 1], "sigma_t_scale": float(10 ** rng.uniform(-0.5, 0.8)),
-                  "albedo": float(rng.uniform(0.3, 1.0))}
-    if rng.random() < 0.5:
-        light = {"type": "point", "position": rng.uniform(-1.2, 1.2, 3).tolist(), "intensity": float(rng.uniform(1, 6))}
-    else:
-        light = {"type": "directional", "direction": (rng.normal(size=3) - [0, 2, 0]).tolist(),
-                 "irradiance": float(rng.uniform(1, 3))}
-    sky = rng.uniform(0, 0.3, 3).tolist() if rng.random() < 0.5 else [0.0, 0.0, 0.0]
-    floor = [{"type": "plane", "center": [0, -1.1, 0], "normal": [0, 1, 0], "size": [4, 4], "diffuse": 0.5}]
-    return {"name": f"random-{seed}", "background": sky,
-            "camera": {"origin": (rng.normal(size=3) * 0.3 + [0, 0.3, 3.5]).tolist(), "target": [0, 0, 0],
-                       "fov_y": 45.0, "width": 16, "height": 12},
-            "lights": [light], "media": [medium], "surfaces": floor if rng.random() < 0.5 else []}
+from warpvol.scene.procedural import random_cloud, random_scene
 
 
 def test_raymarch_meets_its_target_on_random_scenes():
@@ -73,22 +44,6 @@ def test_light_shafts_meets_its_target_on_random_scenes():
         fine = wv.render(scene, "light_shafts", device="cpu", steps=8192).image
         met += wv.relative_rmse(frame.image, fine) <= 0.02
     assert met >= 9, met
-
-
-def random_cloud(seed: int) -> dict:
-    """A seeded particle cloud (what illumination_network takes): 60 to 200 spheres, sun or
-    point light, a sky or none."""
-    rng = np.random.default_rng(100 + seed)
-    n = int(rng.integers(60, 200))
-    light = ({"type": "directional", "direction": (rng.normal(size=3) - [0, 2, 0]).tolist(),
-              "irradiance": float(rng.uniform(1, 4))} if rng.random() < 0.5 else
-             {"type": "point", "position": rng.uniform(-1.5, 1.5, 3).tolist(), "intensity": float(rng.uniform(2, 8))})
-    return {"name": f"random-cloud-{seed}", "background": rng.uniform(0, 0.4, 3).tolist() if rng.random() < 0.7 else [0, 0, 0],
-            "camera": {"origin": [0.0, 0.0, 3.0], "target": [0, 0, 0], "fov_y": 40.0, "width": 16, "height": 12},
-            "lights": [light],
-            "media": [{"type": "particles", "positions": rng.uniform(-0.6, 0.6, (n, 3)).tolist(),
-                       "radius": float(rng.uniform(0.1, 0.2)), "sigma_t": float(10 ** rng.uniform(0, 0.8)),
-                       "albedo": float(rng.uniform(0.5, 0.99)), "phase": {"type": "hg", "g": float(rng.uniform(0, 0.7))}}]}
 
 
 def test_illumination_network_meets_its_target_on_random_clouds():
