@@ -1198,7 +1198,8 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
           "particle_glow", "table", _glow_stability_grid, _glow_stability, issue=16),
     Sweep("accuracy-vs-time", "every technique that can render a scene family, at a ladder of its quality knob, "
           "against the physical answer (the reference, all orders of scattering, sky included): relative RMSE "
-          "against ms per frame, 64x48", "reference", "front", _front_grid, _front, issue=17),
+          "against ms per frame, 64x48; Mitsuba 3's volpath (llvm_ad_rgb) beside them where it can export the scene "
+          "(homogeneous media)", "reference", "front", _front_grid, _front, issue=17),
     Sweep("raymarch-accuracy", "raymarch: relative RMSE against the single-scattering reference vs ms per frame, "
           "sweeping steps (= shadow_steps) and the baked light-volume size (0 = marched shadow rays)",
           "raymarch", "accuracy", _raymarch_grid, _raymarch_accuracy),
