@@ -235,8 +235,9 @@ def _render_auto(scene, device, progress: bool, settings: dict) -> Frame:
             if all(t in table["families"][n]["techniques"] for n in families):
                 old = measured.get(t)
                 if old is None or m["error"] > old["error"]:
-                    measured[t] = {**m, "ms": max(m["ms"], old["ms"]) if old else m["ms"]}
-    family = " and ".join(families) or None
+                    measured[t] = {**m, "ms": max(m["ms"], old["ms"]) if old else m["ms"], "family": name}
+    family = (families[0] if len(families) == 1 else
+              f"the {len(families)} families of {' and '.join(kinds)} media" if families else None)
     why = f"no technique's measured error on {family or 'this kind of media'} meets {target:g}"
     if measured:
         best = min(measured.items(), key=lambda kv: kv[1]["error"])
@@ -249,7 +250,8 @@ def _render_auto(scene, device, progress: bool, settings: dict) -> Frame:
                 continue
             renderer.technique.one_shot = True
             frame = renderer.render()
-            frame.choice = (f"{name}: measured error {m['error']:.3g} <= {target:g} on {family} in {m['ms']:.0f} ms "
+            worst = f" (the worst: {m['family']})" if len(families) > 1 else ""
+            frame.choice = (f"{name}: measured error {m['error']:.3g} <= {target:g} on {family}{worst} in {m['ms']:.0f} ms "
                             f"({', '.join(f'{k}={v}' for k, v in m['settings'].items())}; {table['device']}, "
                             f"{table['image']})")
             return frame

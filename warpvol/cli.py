@@ -112,7 +112,8 @@ def cmd_render(args) -> int:
     if frame.error_estimate is not None:
         knob = technique_class(frame.technique).QUALITY[0]
         chosen = f", {knob} = {frame.settings[knob]}, estimated error {frame.error_estimate:.3g}"
-    print(f"{scene.name}: {args.technique} on {frame.device}, {scene.camera.width}x{scene.camera.height}{chosen}, "
+    name = f"auto -> {frame.technique}" if args.technique == "auto" else frame.technique
+    print(f"{scene.name}: {name} on {frame.device}, {scene.camera.width}x{scene.camera.height}{chosen}, "
           f"{wall:.2f} s -> {', '.join(args.out)}")
     if frame.choice:
         print(f"  auto: {frame.choice}")
