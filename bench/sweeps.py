@@ -154,7 +154,7 @@ def _shafts_table_grid(quick: bool) -> list[dict]:
 def _shafts_frame(params: dict, device: str, quick: bool) -> dict:
     """A frame with a moving camera and light over static geometry: shadow maps, the surface
     pass, the march and the block sums run; the BVH and the medium stay cached."""
-    settings = {"steps": 64, **SHAFT_MODES.get(params.get("mode"), {}),
+    settings = {"steps": 64, "edges": 0, **SHAFT_MODES.get(params.get("mode"), {}),  # the paper's block sum
                 **{k: v for k, v in params.items() if k != "mode"}}
     r = wv.Renderer(shafts_scene(quick), technique="light_shafts", device=device, **settings)
     row = time_frames(r, repeats=2 if quick else 5, invalidate=("camera", "lights"))
@@ -182,7 +182,7 @@ def _shafts_accuracy_grid(quick: bool) -> list[dict]:
 def _shafts_accuracy(params: dict, device: str, quick: bool) -> dict:
     scene = shafts_scene(quick, *ACCURACY_SIZE)
     base = baseline_image(scene, "raymarch", device, steps=64 if quick else 1024)
-    r = wv.Renderer(scene, technique="light_shafts", device=device, **params)
+    r = wv.Renderer(scene, technique="light_shafts", device=device, edges=0, **params)  # the paper's block sum
     row = time_frames(r, repeats=2 if quick else 3, invalidate=("camera", "lights"))
     score_against_reference(row, scene, device, 16 if quick else 1024)
     row["rel_rmse_raymarch"] = wv.relative_rmse(row["frame"].image, base)
@@ -243,7 +243,7 @@ def _shafts_speedup(params: dict, device: str, quick: bool) -> dict:
 
     n, m = params["steps"], params["block"]
     scene = shafts_scene(quick)
-    rs = {k: wv.Renderer(scene, technique="light_shafts", device=device, steps=n, block=k) for k in (1, m)}
+    rs = {k: wv.Renderer(scene, technique="light_shafts", device=device, steps=n, block=k, edges=0) for k in (1, m)}
     t0 = time.perf_counter()
     for r in rs.values():
         r.render()

@@ -217,7 +217,7 @@ def test_depth_aware_block_sum_removes_the_halo(device):
     to float rounding (measured 2e-7)."""
     scene = pillar_scene(width=96, height=72)
     full = shafts(scene, device, steps=64, block=1, jitter=0).image
-    r = wv.Renderer(scene, technique="light_shafts", device=device, steps=64, block=4, jitter=0)
+    r = wv.Renderer(scene, technique="light_shafts", device=device, steps=64, block=4, jitter=0, edges=0)
     plain = r.render().image
     depth = r.arrays(resolution=2)["depth"]
     aware = shafts(scene, device, steps=64, block=4, jitter=0, edges=1).image

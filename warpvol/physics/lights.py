@@ -120,3 +120,16 @@ def segment_mean_inverse_square(o: wp.vec3, d: wp.vec3, t0: float, t1: float, p:
         tm = 0.5 * (t0 + t1) - tc
         return 1.0 / (h * h + tm * tm)
     return (wp.atan((t1 - tc) / h) - wp.atan((t0 - tc) / h)) / (h * dt)
+
+
+
+@wp.func
+def step_mean_irradiance(light: Light, e: wp.vec3, dist: float, o: wp.vec3, d: wp.vec3, t0: float, t1: float):
+    """The irradiance ``e`` that ``light`` delivers at a point of the march step o + t d,
+    t in [t0, t1], at distance ``dist`` (``light_incident``, times any visibility), with a point
+    or spot light's 1/d^2 replaced by its mean over the step (``segment_mean_inverse_square``):
+    a step beside the light does not alias its peak. Directional lights: ``e`` as it is."""
+    if light.kind == DIRECTIONAL:
+        return e
+    e_d2 = wp.where(dist > 1.0e-10, e * (dist * dist), light.strength)  # I x falloff (x visibility)
+    return e_d2 * segment_mean_inverse_square(o, d, t0, t1, light.position)

@@ -47,12 +47,17 @@ Where this departs from the paper, and why:
   from a point half a texel off the surface along its normal (normal-offset shadows).
 * Outside the medium's bounds (and beyond the visible surface) nothing scatters, so the
   march covers only the part of the ray inside the media.
+* A point or spot light's 1/d^2 is averaged over each sample's cell in closed form
+  (``physics.lights.step_mean_irradiance``, as raymarch does): N samples over a long ray
+  beside a lamp otherwise miss or alias its peak (point-in-fog at 80x60, M = 4: 0.53 off its
+  converged image before, against 2048 steps per pixel).
 
 At depth discontinuities the block sum adds samples of neighbouring rays of other
 lengths: a pixel on a near column next to the far wall borrows the wall pixels' longer
 samples, and vice versa, which leaves a halo up to M/2 pixels wide. Its error is measured
 in results/light-shafts-edges (edge pixels against the others). Beyond the paper, ``edges`` = 1
-replaces the separable sum by a depth-aware one (``block_edges``): a pixel sums only the
+(the default; 0: the paper's sum, as the paper's tables are measured) replaces the separable
+sum by a depth-aware one (``block_edges``): a pixel sums only the
 neighbours whose surface lies within ``edge_tolerance`` of its own depth and scales the sum
 by M^2 / (neighbours kept), which cuts that error 2.5-8 fold there (5 fold at M = 4) at M^2
 reads per pixel.
@@ -89,6 +94,7 @@ from ..geometry.shadowmap import (
 )
 from ..media.volume import Media, homogeneous_optical_depth, in_scatter_at, sigma_t_at
 from ..physics.constants import INF, RAY_EPS
+from ..physics.lights import step_mean_irradiance
 from ..physics.transmittance import transmittance_rgb
 from ..pipeline import Setting, Stage, Technique
 from ..shading import light_arriving, marched_optical_depth, surface_through_maps
@@ -108,8 +114,9 @@ SETTINGS = {
     "raster": Setting(1, 0, 1, "1: shadow maps and the visible surface by rasterising triangles; 0: by BVH ray casts"),
     "raster_tiles": Setting(-1, -1, 1, "1: one rasteriser thread per 16 x 16-pixel piece of a triangle (balanced "
                             "for GPUs); 0: one per triangle; -1: pieces on CUDA, triangles on the CPU"),
-    "edges": Setting(0, 0, 1, "1: the block sum keeps to neighbours at a similar depth and rescales for the samples it "
-                     "leaves out (no halo at depth jumps); 0: the paper's plain separable sum"),
+    "edges": Setting(1, 0, 1, "1: the block sum keeps to neighbours at a similar depth and rescales for the samples it "
+                     "leaves out (no halo at depth jumps; at 800x600, M = 4: a fifth of the error there for 8% more "
+                     "time, results/light-shafts-edges); 0: the paper's plain separable sum"),
     "edge_tolerance": Setting(0.1, 0.0, 10.0, "edges = 1: relative depth difference beyond which a neighbour is left out"),
 }
 
@@ -231,6 +238,8 @@ def march_shafts(offset: int, cam: RasterView, m: Media, sl: ShadowedLights, seg
                 for l in range(sl.lights.shape[0]):
                     wi, e, tau = light_arriving(m, sl, l, x, wp.vec3(0.0), st.shadow_steps)
                     if e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0:
+                        e = step_mean_irradiance(sl.lights[l], e, wp.length(sl.lights[l].position - x), o, d, c0,
+                                                 c0 + w)  # a point light's 1/d^2 averaged over the cell
                         li = wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e)
                         acc += wp.cw_mul(transmittance_rgb(tau_v + tau), li) * w
         else:
@@ -249,6 +258,8 @@ def march_shafts(offset: int, cam: RasterView, m: Media, sl: ShadowedLights, seg
                     for l in range(sl.lights.shape[0]):
                         wi, e, tau_l = light_arriving(m, sl, l, x, wp.vec3(0.0), st.shadow_steps)
                         if e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0:
+                            e = step_mean_irradiance(sl.lights[l], e, wp.length(sl.lights[l].position - x), o, d,
+                                                     c0, c0 + w)
                             li = wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e)
                             acc += wp.cw_mul(transmittance_rgb(tau_v + tau_l), li) * w
                 tau += sig * w

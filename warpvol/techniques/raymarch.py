@@ -37,7 +37,7 @@ from ..media.grid import lattice_trilinear_vec3
 from ..media.volume import Media, in_scatter_at, scattering_at, sigma_t_at
 from ..physics.brdf import brdf_eval
 from ..physics.constants import INF, PI, RAY_EPS
-from ..physics.lights import DIRECTIONAL, Light, light_incident, segment_mean_inverse_square
+from ..physics.lights import Light, light_incident, step_mean_irradiance
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Setting, SettingsError, Stage, Technique
 from ..shading import light_transmittance, marched_optical_depth, surface_direct
@@ -169,10 +169,7 @@ def march_single_scattering(offset: int, cam: RasterView, m: Media, s: Surfaces,
                 for l in range(lights.shape[0]):
                     wi, dist, e = light_incident(lights[l], x)
                     if dist > 0.0:
-                        if lights[l].kind != DIRECTIONAL:  # 1/d^2 averaged over the step, not sampled
-                            e_d2 = wp.where(dist > 1.0e-10, e * (dist * dist), lights[l].strength)  # I x falloff
-                            e = e_d2 * segment_mean_inverse_square(o, d, t_mid - 0.5 * dt, t_mid + 0.5 * dt,
-                                                                   lights[l].position)
+                        e = step_mean_irradiance(lights[l], e, dist, o, d, t_mid - 0.5 * dt, t_mid + 0.5 * dt)
                         tl = light_at(m, s, l, x, wi, dist, st, baked, st.shadow_steps)
                         inscatter += wp.cw_mul(wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e), tl)
                 if sky.shape[0] > 0:
