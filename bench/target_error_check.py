@@ -34,9 +34,6 @@ CASES = {
     "reference": (0.03, "random_scene", [{"spp": 8192, "seed": k} for k in (3, 4)], "2 x 8192 spp"),
 }
 
-KNOB = {"raymarch": "steps", "light_shafts": "steps", "particle_glow": "steps", "rbf_propagation": "grid",
-        "depth_impostors": "slices", "illumination_network": "directions", "reference": "spp"}
-
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -67,10 +64,10 @@ def main(argv=None) -> None:
                 truth_image = np.mean([wv.render(scene, technique, device="cpu", **f).image.astype(np.float64)
                                        for f in fine], axis=0)
             truth = wv.relative_rmse(frame.image, truth_image)
-            knob = KNOB[technique]
+            knob = wv.technique_class(technique).QUALITY[0]  # what target_error raised
             rows.append({"technique": technique, "scene": f"{kind}({seed})", "target": target,
                          "estimate": frame.error_estimate, "truth": truth, "truth_is": truth_is,
-                         "knob": {k: frame.settings[k] for k in (knob,) if k}, "seconds": seconds})
+                         "knob": {knob: frame.settings[knob]}, "seconds": seconds})
             print(f"{technique} {kind}({seed}): estimate {frame.error_estimate:.3g} truth {truth:.3g} "
                   f"{rows[-1]['knob']} {seconds:.1f} s", flush=True)
     doc = {"command": "PYTHONPATH=. .venv/bin/python -m bench.target_error_check", "device": device_name("cpu"),

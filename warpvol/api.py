@@ -21,6 +21,8 @@ def technique_names() -> list[str]:
 
 
 def technique_class(name: str):
+    """The technique called ``name`` (its ``SETTINGS``, ``QUALITY``, ``LEAVES_OUT``); an unknown
+    name raises SettingsError with the allowed ones."""
     from .techniques import TECHNIQUES
 
     if name not in TECHNIQUES:

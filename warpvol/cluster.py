@@ -139,8 +139,8 @@ def render_reference(client, scene, device: str | None = None, passes: int | Non
     The image estimates the same mean as ``warpvol.render(scene, "reference", spp=...)``. With
     seed S the passes draw with the seeds S, S + 1, ... (``split_samples``): independent of
     each other, and of a local render whose seed is none of those. ``frame.device`` says which
-    devices and hosts took part; ``frame.timings["passes"]`` is the passes' seconds summed over
-    the workers.
+    devices and hosts took part; ``frame.stages["passes"]`` is the passes' time summed over the
+    workers.
     """
     results = client.gather(submit_reference(client, scene, device, passes, **settings))
     where = sorted({f"{r['device']} on {r['host']}" for r in results})

@@ -30,6 +30,7 @@ from .media.volume import BOX, GRID, PARTICLES, RBF, SPHERE, Media, sample_extin
 from .physics.brdf import Material
 from .physics.lights import KINDS, Light
 from .physics.phase import Phase, phase_struct
+from .physics.sphere import fibonacci_directions
 from .physics.constants import INF
 from .pipeline import SettingsError, Stage, Technique
 from .scene import SceneError, load_scene
@@ -80,8 +81,8 @@ def light_structs(scene) -> list:
 
 def sky_lights(background, count: int, device) -> wp.array:
     """A constant sky of radiance ``background`` as ``count`` directional lights from a
-    Fibonacci set of directions over the whole sphere (near-uniform, deterministic), each of
-    strength ``background``: a technique sums p_k E_k T_k over them and divides by sum p_k
+    Fibonacci set of directions over the whole sphere (``physics.sphere.fibonacci_directions``),
+    each of strength ``background``: a technique sums p_k E_k T_k over them and divides by sum p_k
     (or by sum cos_k at a surface), which is exact for an unoccluded point. None when the sky
     is black or ``count`` is 0."""
     out = sky_light_structs(background, count)
@@ -93,12 +94,8 @@ def sky_light_structs(background, count: int) -> list:
     sky = np.asarray(background, np.float64)
     if count <= 0 or not np.any(sky > 0.0):
         return []
-    k = np.arange(count) + 0.5
-    z = 1.0 - 2.0 * k / count
-    phi = np.pi * (3.0 - np.sqrt(5.0)) * k
-    s = np.sqrt(np.maximum(1.0 - z * z, 0.0))
     out = []
-    for w in np.stack([s * np.cos(phi), z, s * np.sin(phi)], axis=1):  # w: toward the sky
+    for w in fibonacci_directions(count):  # w: toward the sky
         light = Light()
         light.kind = KINDS["directional"]
         light.position = wp.vec3(0.0)
