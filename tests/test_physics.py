@@ -246,7 +246,7 @@ def eval_ball_mean(r: float, d: wp.array(dtype=float), out: wp.array(dtype=float
 @wp.kernel
 def eval_chord(o: wp.vec3, dirs: wp.array(dtype=wp.vec3), t1: float, c: wp.vec3, r: float, out: wp.array(dtype=float)):
     i = wp.tid()
-    out[i] = sphere_chord(o, dirs[i], t1, c, r)
+    out[i] = sphere_chord(o, dirs[i], 0.0, t1, c, r)
 
 
 def test_ball_mean_inverse_square_matches_quadrature(device):

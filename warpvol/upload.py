@@ -24,7 +24,7 @@ from .geometry.camera import PinholeCamera
 from .geometry.mesh import Surfaces
 from .geometry.shadowmap import ShadowedLights, ShadowMap, shadow_map_depths, shadow_map_for, texels
 from .media.grid import majorant_grid, volume_majorant_grid
-from .media.particles import ParticleBuffers, particle_majorant
+from .media.particles import ParticleBuffers, Particles, particle_majorant
 from .media.rbf import CUTOFF, rbf_majorant
 from .media.volume import BOX, GRID, PARTICLES, RBF, SPHERE, Media, sample_extinction
 from .physics.brdf import Material
@@ -231,6 +231,7 @@ class MediaBuffers:
         n_grid = n_points = n_table = n_majorant = 0
         point_media, majorant_chunks, majorant_dims, majorant_offset = [], [], [], []
         self.volumes = []  # NanoVDB grids (wp.Volume), kept alive while kernels read them
+        self.clouds = []  # particle media (ParticleBuffers), in order
         volume_ids, volume_origin = [], []
         for m in scene.media:
             volume_ids.append(0)
@@ -274,18 +275,22 @@ class MediaBuffers:
                 majorant_dims[-1], majorant_offset[-1] = (mx, my, mz), n_majorant
                 majorant_chunks.append(coarse.ravel())
                 n_majorant += coarse.size
-            else:
-                pts = m.centers if isinstance(m, RBFMedium) else m.positions
-                reach = float(CUTOFF) * m.radius if isinstance(m, RBFMedium) else m.radius
-                kinds.append(int(RBF) if isinstance(m, RBFMedium) else int(PARTICLES))
+            elif isinstance(m, RBFMedium):
+                kinds.append(int(RBF))
                 radius[-1], offset[-1] = m.radius, n_points
-                point_chunks.append(pts)
-                point_media.append((len(kinds) - 1, n_points, len(pts), reach))
-                n_points += len(pts)
-                scale = np.asarray(m.peak if isinstance(m, RBFMedium) else m.sigma_t)
-                sigma.append(tuple(scale))
-                bound = rbf_majorant(pts, m.radius) if isinstance(m, RBFMedium) else particle_majorant(pts, m.radius)
-                majorants.append(bound * scale)
+                point_chunks.append(m.centers)
+                point_media.append((len(kinds) - 1, n_points, len(m.centers), float(CUTOFF) * m.radius))
+                n_points += len(m.centers)
+                sigma.append(tuple(m.peak))
+                majorants.append(rbf_majorant(m.centers, m.radius) * np.asarray(m.peak))
+            else:  # particles: a cloud of their own, as every particle kernel reads one
+                kinds.append(int(PARTICLES))
+                radius[-1], offset[-1] = m.radius, len(self.clouds)
+                n = len(m.positions)
+                self.clouds.append(ParticleBuffers(m.positions, np.full(n, m.radius), np.tile(m.sigma_t, (n, 1)),
+                                                   np.tile(m.albedo, (n, 1)), device))
+                sigma.append(tuple(m.sigma_t))
+                majorants.append(particle_majorant(m.positions, m.radius) * np.asarray(m.sigma_t))
         count = len(kinds)
         self.device = device
         f3 = lambda rows: wp.array(np.asarray(rows, np.float32).reshape(-1, 3) if rows else np.zeros((1, 3), np.float32), dtype=wp.vec3, device=device)  # noqa: E731
@@ -304,6 +309,7 @@ class MediaBuffers:
         s.volume_origin = wp.array(np.asarray(volume_origin or [(0, 0, 0)], np.int32), dtype=wp.vec3i, device=device)
         pts_all = np.concatenate(point_chunks).astype(np.float32) if n_points else np.zeros((1, 3), np.float32)
         s.points = wp.array(pts_all, dtype=wp.vec3, device=device)
+        s.particles = wp.array([c.struct for c in self.clouds] or [Particles()], dtype=Particles, device=device)
         s.phase_table = wp.array(np.concatenate(tables) if tables else np.zeros(1, np.float32), dtype=float, device=device)
         self.hash_grids = []
         ids = np.zeros(max(count, 1), np.uint64)
@@ -315,7 +321,7 @@ class MediaBuffers:
             self.hash_grids.append(hg)
             ids[i] = hg.id
         s.hash_grid = wp.array(ids, dtype=wp.uint64, device=device)
-        # a BVH over each RBF / particle medium's spheres (cut-off spheres for RBFs): rays find
+        # a BVH over each RBF medium's cut-off spheres: rays find
         # the components they cross for exact optical depth and free flight
         self.bvhs = []
         bvh_ids = np.zeros(max(count, 1), np.uint64)

@@ -47,8 +47,8 @@ def ray_sphere(o: wp.vec3, d: wp.vec3, c: wp.vec3, r: float):
 
 
 @wp.func
-def sphere_chord(o: wp.vec3, d: wp.vec3, t1: float, c: wp.vec3, r: float) -> float:
-    """Length of the part of the segment o + t d (unit d, 0 <= t <= t1) inside the sphere
+def sphere_chord(o: wp.vec3, d: wp.vec3, t0: float, t1: float, c: wp.vec3, r: float) -> float:
+    """Length of the part of the segment o + t d (unit d, t0 <= t <= t1) inside the sphere
     (c, r): the sphere's share of the optical depth is sigma_t times this."""
     oc = c - o
     b = wp.dot(oc, d)
@@ -56,4 +56,4 @@ def sphere_chord(o: wp.vec3, d: wp.vec3, t1: float, c: wp.vec3, r: float) -> flo
     if h2 <= 0.0:
         return 0.0
     h = wp.sqrt(h2)
-    return wp.max(wp.min(b + h, t1) - wp.max(b - h, 0.0), 0.0)
+    return wp.max(wp.min(b + h, t1) - wp.max(b - h, t0), 0.0)

@@ -369,7 +369,7 @@ def optical_depth_to_light(m: LightMap, P: Particles, skip: int, l: int, light: 
     ``EXACT``, as chord sums along the ray itself."""
     if m.kind == EXACT:
         wi, dist, e = light_incident(light, x)  # at the light itself: dist 0, no depth
-        return particle_optical_depth(P, skip, x, wi, dist)
+        return particle_optical_depth(P, skip, x, wi, 0.0, dist)
     if skip < 0:
         return map_optical_depth(m, l, x, x, 0.0, wp.vec3(0.0))
     return map_optical_depth(m, l, x, P.centres[skip], P.radius[skip], P.sigma_t[skip])

@@ -1,32 +1,18 @@
 """Particle media: N spheres, each of uniform extinction; overlaps add.
 
-In the ``Media`` struct (media/volume.py) a particle medium has one radius, and its density
-factor at x is the number of spheres that contain x (``particle_count``), found through a
-``wp.HashGrid`` with cells of the particle radius. A particle technique reads a cloud as a
-``Particles`` struct (per-sphere radius, sigma_t and albedo; ``ParticleBuffers`` builds it):
-sigma_t at a point through its hash grid (``particle_sigma_t``), exact transmittance along a
-segment through the union of spheres (``particle_optical_depth``, through a ``wp.Bvh`` over
-the spheres' boxes).
+Every kernel reads a cloud as a ``Particles`` struct (per-sphere radius, sigma_t and albedo;
+``ParticleBuffers`` builds it): the reference's ``Media`` holds one per particle medium
+(media/volume.py), a particle technique one for the scene's whole cloud. On it: sigma_t at a
+point through its hash grid (``particle_sigma_t``), exact optical depth along a segment
+through the union of spheres (``particle_optical_depth``, through a ``wp.Bvh`` over the
+spheres' boxes).
 """
 
 import numpy as np
 import warp as wp
 
 from ..geometry.intersect import sphere_chord
-from ..physics.transmittance import transmittance_rgb
 from .rbf import box_distance2, coarse_cells
-
-
-@wp.func
-def particle_count(grid: wp.uint64, points: wp.array(dtype=wp.vec3), offset: int, radius: float, x: wp.vec3) -> float:
-    n = float(0.0)
-    index = int(0)
-    query = wp.hash_grid_query(grid, x, radius)
-    while wp.hash_grid_query_next(query, index):
-        d = x - points[offset + index]
-        if wp.dot(d, d) <= radius * radius:
-            n += 1.0
-    return n
 
 
 def particle_majorant(positions: np.ndarray, radius: float, n: int = 12) -> float:
@@ -67,8 +53,8 @@ def particle_sigma_t(P: Particles, x: wp.vec3) -> wp.vec3:
 
 
 @wp.func
-def particle_optical_depth(P: Particles, skip: int, x: wp.vec3, w: wp.vec3, t1: float) -> wp.vec3:
-    """Optical depth along x + t w (unit w), 0 <= t <= t1, through the union of the spheres
+def particle_optical_depth(P: Particles, skip: int, x: wp.vec3, w: wp.vec3, t0: float, t1: float) -> wp.vec3:
+    """Optical depth along x + t w (unit w), t0 <= t <= t1, through the union of the spheres
     other than ``skip`` (-1: all): exact, chord lengths times sigma_t, the spheres found by a
     BVH ray query (O(log N + the spheres crossed))."""
     tau = wp.vec3(0.0)
@@ -78,16 +64,10 @@ def particle_optical_depth(P: Particles, skip: int, x: wp.vec3, w: wp.vec3, t1: 
     query = wp.bvh_query_ray(P.bvh, x, w)
     while wp.bvh_query_next(query, q, t1):
         if q != skip:
-            c = sphere_chord(x, w, t1, P.centres[q], P.radius[q])
+            c = sphere_chord(x, w, t0, t1, P.centres[q], P.radius[q])
             if c > 0.0:
                 tau += c * P.sigma_t[q]
     return tau
-
-
-@wp.func
-def particle_transmittance(P: Particles, skip: int, x: wp.vec3, w: wp.vec3, t1: float) -> wp.vec3:
-    """exp(-``particle_optical_depth``): transmittance through the union of the spheres."""
-    return transmittance_rgb(particle_optical_depth(P, skip, x, w, t1))
 
 
 class ParticleBuffers:

@@ -27,7 +27,7 @@ from ..physics.constants import INF, SQRT2, SQRT_HALF_PI, STREAM
 from ..physics.phase import Phase, phase_eval
 from ..physics.transmittance import transmittance_rgb
 from .grid import grid_trilinear, volume_trilinear, walk_axis, walk_start
-from .particles import particle_count
+from .particles import Particles, particle_optical_depth, particle_sigma_t
 from .rbf import CUTOFF, rbf_density
 
 BOX = wp.constant(0)
@@ -49,12 +49,13 @@ class Media:
     albedo: wp.array(dtype=wp.vec3)
     phase: wp.array(dtype=Phase)
     dims: wp.array(dtype=wp.vec3i)  # grid resolution (x, y, z)
-    offset: wp.array(dtype=int)  # first entry in grid_data or points
+    offset: wp.array(dtype=int)  # first entry in grid_data or points; a particle medium's entry in particles
     volume: wp.array(dtype=wp.uint64)  # grid media: a NanoVDB wp.Volume holding the samples (0: grid_data does)
     volume_origin: wp.array(dtype=wp.vec3i)  # its voxel that is sample (0, 0, 0)
-    hash_grid: wp.array(dtype=wp.uint64)
+    hash_grid: wp.array(dtype=wp.uint64)  # RBF media: a wp.HashGrid over their centres
     grid_data: wp.array(dtype=float)
-    points: wp.array(dtype=wp.vec3)
+    points: wp.array(dtype=wp.vec3)  # RBF centres
+    particles: wp.array(dtype=Particles)  # particle media: each one's cloud (media/particles.py)
     phase_table: wp.array(dtype=float)
     all_min: wp.vec3  # union bounds of every medium
     all_max: wp.vec3
@@ -65,11 +66,13 @@ class Media:
     majorant_data: wp.array(dtype=float)  # grid media: bounds of the density per coarse cell (media/grid.py)
     majorant_dims: wp.array(dtype=wp.vec3i)  # coarse cells per axis (x, y, z)
     majorant_offset: wp.array(dtype=int)  # first entry of a grid's coarse cells in majorant_data
-    bvh: wp.array(dtype=wp.uint64)  # RBF / particle media: a BVH over the spheres' boxes (0: none)
+    bvh: wp.array(dtype=wp.uint64)  # RBF media: a BVH over the cut-off spheres' boxes (0: none)
 
 
 @wp.func
 def medium_density(m: Media, i: int, x: wp.vec3) -> float:
+    """The density factor of a homogeneous, grid or RBF medium i at x (sigma_t = it times
+    m.sigma[i]); particle media have per-sphere sigma_t (``medium_sigma_t``)."""
     kind = m.kind[i]
     if kind == SPHERE:
         d = x - m.center[i]
@@ -84,9 +87,17 @@ def medium_density(m: Media, i: int, x: wp.vec3) -> float:
         if m.volume[i] != wp.uint64(0):
             return volume_trilinear(m.volume[i], m.volume_origin[i], m.dims[i], lo, hi, x)
         return grid_trilinear(m.grid_data, m.offset[i], m.dims[i], lo, hi, x)
-    if kind == RBF:
-        return rbf_density(m.hash_grid[i], m.points, m.offset[i], m.radius[i], x)
-    return particle_count(m.hash_grid[i], m.points, m.offset[i], m.radius[i], x)
+    return rbf_density(m.hash_grid[i], m.points, m.offset[i], m.radius[i], x)
+
+
+@wp.func
+def medium_sigma_t(m: Media, i: int, x: wp.vec3) -> wp.vec3:
+    """sigma_t of medium i at x (RGB, 1/unit)."""
+    if m.kind[i] == PARTICLES:
+        if not inside_box(x, m.bmin[i], m.bmax[i]):
+            return wp.vec3(0.0)
+        return particle_sigma_t(m.particles[m.offset[i]], x)
+    return medium_density(m, i, x) * m.sigma[i]
 
 
 @wp.func
@@ -99,7 +110,7 @@ def sigma_t_at(m: Media, x: wp.vec3, hetero_only: bool) -> wp.vec3:
     s = wp.vec3(0.0)
     for i in range(m.count):
         if is_heterogeneous(m, i) or not hetero_only:
-            s += medium_density(m, i, x) * m.sigma[i]
+            s += medium_sigma_t(m, i, x)
     return s
 
 
@@ -108,9 +119,9 @@ def in_scatter_at(m: Media, x: wp.vec3, cos_theta: float) -> wp.vec3:
     """sum_m sigma_s,m(x) p_m(cos_theta): what scatters from a unit beam into a unit solid angle."""
     s = wp.vec3(0.0)
     for i in range(m.count):
-        dens = medium_density(m, i, x)
-        if dens > 0.0:
-            s += dens * phase_eval(m.phase[i], m.phase_table, cos_theta) * wp.cw_mul(m.sigma[i], m.albedo[i])
+        sig = medium_sigma_t(m, i, x)
+        if wp.max(sig) > 0.0:
+            s += phase_eval(m.phase[i], m.phase_table, cos_theta) * wp.cw_mul(sig, m.albedo[i])
     return s
 
 
@@ -119,9 +130,7 @@ def scattering_at(m: Media, x: wp.vec3) -> wp.vec3:
     """sum_m sigma_s,m(x): the scattering coefficient (in_scatter_at without the phase function)."""
     s = wp.vec3(0.0)
     for i in range(m.count):
-        dens = medium_density(m, i, x)
-        if dens > 0.0:
-            s += dens * wp.cw_mul(m.sigma[i], m.albedo[i])
+        s += wp.cw_mul(medium_sigma_t(m, i, x), m.albedo[i])
     return s
 
 
@@ -247,23 +256,20 @@ def exact_optical_depth(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: float) 
     tau = homogeneous_optical_depth(m, o, d, t0, t1)
     for i in range(m.count):
         kind = m.kind[i]
-        if kind == PARTICLES or kind == RBF:
+        if kind == PARTICLES:
+            tau += particle_optical_depth(m.particles[m.offset[i]], -1, o, d, t0, t1)
+        elif kind == RBF:
             r = m.radius[i]
             acc = float(0.0)
             query = wp.bvh_query_ray(m.bvh[i], o, d)
             k = int(0)
             while wp.bvh_query_next(query, k, t1):
-                c = m.points[m.offset[i] + k]
-                if kind == PARTICLES:
-                    a, b = ray_sphere(o, d, c, r)
-                    acc += wp.max(wp.min(b, t1) - wp.max(a, t0), 0.0)
-                else:
-                    tc, g, s = gaussian_on_ray(o, d, c, r)
-                    a = wp.max(tc - s, t0)
-                    b = wp.min(tc + s, t1)
-                    if a < b:  # float32 erf: its absolute error (6e-8 of the Gaussian's mass) is harmless here
-                        s2r = SQRT2 * r
-                        acc += g * r * SQRT_HALF_PI * (wp.erf((b - tc) / s2r) - wp.erf((a - tc) / s2r))
+                tc, g, s = gaussian_on_ray(o, d, m.points[m.offset[i] + k], r)
+                a = wp.max(tc - s, t0)
+                b = wp.min(tc + s, t1)
+                if a < b:  # float32 erf: its absolute error (6e-8 of the Gaussian's mass) is harmless here
+                    s2r = SQRT2 * r
+                    acc += g * r * SQRT_HALF_PI * (wp.erf((b - tc) / s2r) - wp.erf((a - tc) / s2r))
             tau += acc * m.sigma[i]
     return tau
 
@@ -307,32 +313,35 @@ def free_flight(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: float, c: int, 
                 if hit > 0.0:
                     best = t
                     who = i
+            elif kind == PARTICLES:
+                P = m.particles[m.offset[i]]
+                if P.bvh != wp.uint64(0):
+                    query = wp.bvh_query_ray(P.bvh, o, d)
+                    k = int(0)
+                    while wp.bvh_query_next(query, k, best):
+                        a, b = ray_sphere(o, d, P.centres[k], P.radius[k])
+                        t = uniform_collision(wp.max(a, t0), wp.min(b, best), P.sigma_t[k][c], wp.randf(rng))
+                        if t < best:
+                            best = t
+                            who = i
             else:
                 r = m.radius[i]
                 query = wp.bvh_query_ray(m.bvh[i], o, d)
                 k = int(0)
                 while wp.bvh_query_next(query, k, best):
-                    ctr = m.points[m.offset[i] + k]
-                    if kind == PARTICLES:
-                        a, b = ray_sphere(o, d, ctr, r)
-                        t = uniform_collision(wp.max(a, t0), wp.min(b, best), sig, wp.randf(rng))
-                        if t < best:
-                            best = t
+                    tc, g, s = gaussian_on_ray(o, d, m.points[m.offset[i] + k], r)
+                    a = wp.max(tc - s, t0)
+                    b = wp.min(tc + s, best)
+                    if a < b:
+                        # optical depth from a to t: K (erf(z_t) - erf(z_a)), K = sig g r sqrt(pi / 2)
+                        K = wp.float64(sig * g * r * SQRT_HALF_PI)
+                        ea = gaussian_erf(a, tc, r)
+                        e = wp.float64((-wp.log(1.0 - wp.randf(rng))))
+                        if e < K * (gaussian_erf(b, tc, r) - ea):
+                            z = wp.erfinv(ea + e / K)
+                            t = tc + SQRT2 * r * wp.float32(z)
+                            best = wp.clamp(t, a, b)
                             who = i
-                    else:
-                        tc, g, s = gaussian_on_ray(o, d, ctr, r)
-                        a = wp.max(tc - s, t0)
-                        b = wp.min(tc + s, best)
-                        if a < b:
-                            # optical depth from a to t: K (erf(z_t) - erf(z_a)), K = sig g r sqrt(pi / 2)
-                            K = wp.float64(sig * g * r * SQRT_HALF_PI)
-                            ea = gaussian_erf(a, tc, r)
-                            e = wp.float64((-wp.log(1.0 - wp.randf(rng))))
-                            if e < K * (gaussian_erf(b, tc, r) - ea):
-                                z = wp.erfinv(ea + e / K)
-                                t = tc + SQRT2 * r * wp.float32(z)
-                                best = wp.clamp(t, a, b)
-                                who = i
     return best, who
 
 

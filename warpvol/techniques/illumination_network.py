@@ -376,7 +376,7 @@ def composite(offset: int, cam: RasterView, P: Particles, radiance: wp.array(dty
     T = wp.vec3(1.0)
     for k in range(tl.first[tile], tl.last[tile]):
         p = tl.values[k]
-        c = sphere_chord(o, d, 1.0e30, P.centres[p], P.radius[p])
+        c = sphere_chord(o, d, 0.0, 1.0e30, P.centres[p], P.radius[p])
         if c > 0.0:
             t = transmittance_rgb(P.sigma_t[p] * c)
             L += wp.cw_mul(wp.cw_mul(T, wp.vec3(1.0) - t), radiance[p])
