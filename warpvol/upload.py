@@ -34,7 +34,7 @@ from .physics.sphere import fibonacci_directions
 from .physics.constants import INF
 from .pipeline import SettingsError, Stage, Technique
 from .scene import SceneError, load_scene
-from .scene.model import Camera, GridMedium, HomogeneousMedium, RBFMedium, Scene
+from .scene.model import Camera, GridMedium, HomogeneousMedium, ParticleMedium, RBFMedium, Scene
 
 
 def pinhole(camera: Camera) -> PinholeCamera:
@@ -201,6 +201,21 @@ def medium_bounds(m) -> tuple[np.ndarray, np.ndarray] | None:
     return pts.min(0) - reach, pts.max(0) + reach
 
 
+def medium_ball(m, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, float]:
+    """(centre, radius) of a ball holding all of a scene medium with bounds (lo, hi): a
+    sphere itself; around the centres of an RBF or particle cloud, their farthest reach; else
+    the box's circumsphere. Padded by 1e-5 of its size, so that float32 rays stay inside it."""
+    if isinstance(m, HomogeneousMedium) and m.shape == "sphere":
+        c, r = np.asarray(m.center, np.float64), float(m.radius)
+    elif isinstance(m, (RBFMedium, ParticleMedium)) and len(m.centers if isinstance(m, RBFMedium) else m.positions):
+        pts = np.asarray(m.centers if isinstance(m, RBFMedium) else m.positions, np.float64)
+        c = 0.5 * (pts.min(0) + pts.max(0))
+        r = float(np.sqrt(((pts - c) ** 2).sum(1)).max()) + (float(CUTOFF) * m.radius if isinstance(m, RBFMedium) else m.radius)
+    else:
+        c, r = 0.5 * (np.asarray(lo, np.float64) + hi), 0.5 * float(np.linalg.norm(np.asarray(hi, np.float64) - lo))
+    return c, max(r, 0.0) * (1.0 + 1e-5) + 1e-6
+
+
 def scene_bounds(scene: Scene, media: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """Bounds (lo, hi) of the scene's surfaces and, with ``media``, its media; [-1, 1]^3 if empty."""
     boxes = [(s.vertices.min(0), s.vertices.max(0)) for s in scene.surfaces]
@@ -226,7 +241,7 @@ class MediaBuffers:
     """Owns the device arrays (and hash grids) behind a ``Media`` struct."""
 
     def __init__(self, scene: Scene, device):
-        kinds, bmin, bmax, center, radius, sigma, albedo, phases, dims, offset = ([] for _ in range(10))
+        kinds, bmin, bmax, center, radius, sigma, albedo, phases, dims, offset, reach = ([] for _ in range(11))
         majorants, grid_chunks, point_chunks, tables = [], [], [], []
         n_grid = n_points = n_table = n_majorant = 0
         point_media, majorant_chunks, majorant_dims, majorant_offset = [], [], [], []
@@ -251,6 +266,7 @@ class MediaBuffers:
             lo, hi = medium_bounds(m) or (np.full(3, 1.0), np.full(3, -1.0))  # empty cloud: nothing hits it
             bmin.append(lo)
             bmax.append(hi)
+            reach.append(medium_ball(m, lo, hi))
             if isinstance(m, HomogeneousMedium):
                 kinds.append(int(BOX) if m.shape == "box" else int(SPHERE))
                 center[-1], radius[-1] = m.center, m.radius
@@ -298,6 +314,8 @@ class MediaBuffers:
         s.count = count
         s.kind = wp.array(np.asarray(kinds or [0], np.int32), dtype=int, device=device)
         s.bmin, s.bmax, s.center = f3(bmin), f3(bmax), f3(center)
+        s.reach_centre = f3([c for c, _ in reach])
+        s.reach = wp.array(np.asarray([r for _, r in reach] or [0.0], np.float32), dtype=float, device=device)
         s.radius = wp.array(np.asarray(radius or [0.0], np.float32), dtype=float, device=device)
         s.sigma, s.albedo = f3(sigma), f3(albedo)
         s.phase = wp.array(phases or [Phase()], dtype=Phase, device=device)

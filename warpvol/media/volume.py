@@ -43,6 +43,8 @@ class Media:
     kind: wp.array(dtype=int)
     bmin: wp.array(dtype=wp.vec3)  # bounds of each medium
     bmax: wp.array(dtype=wp.vec3)
+    reach_centre: wp.array(dtype=wp.vec3)  # a ball around each medium (a sphere, a cloud of spheres)
+    reach: wp.array(dtype=float)  # its radius (the box's circumsphere where nothing tighter is known)
     center: wp.array(dtype=wp.vec3)  # homogeneous sphere centre
     radius: wp.array(dtype=float)  # sphere / RBF sigma / particle radius
     sigma: wp.array(dtype=wp.vec3)  # RGB scale of the density factor, 1/unit
@@ -141,6 +143,25 @@ def inside_convex(m: Media, i: int, x: wp.vec3) -> bool:
         r = x - m.center[i]
         return wp.dot(r, r) <= m.radius[i] * m.radius[i]
     return inside_box(x, m.bmin[i], m.bmax[i])
+
+
+@wp.func
+def media_span(m: Media, o: wp.vec3, d: wp.vec3):
+    """(t_near, t_far) of the part of the ray o + t d (unit d) that can meet a medium: the
+    hull of each medium's box met with its ball; t_near > t_far when the ray misses them all.
+    Outside it sigma_t is 0, so a path's segment (its next-event estimate, its free flight)
+    starts and ends there: a ray past a round cloud's corners costs nothing."""
+    lo = float(INF)
+    hi = float(-INF)
+    for i in range(m.count):
+        a, b = ray_box(o, d, m.bmin[i], m.bmax[i])
+        a2, b2 = ray_sphere(o, d, m.reach_centre[i], m.reach[i])
+        a = wp.max(a, a2)
+        b = wp.min(b, b2)
+        if a < b:
+            lo = wp.min(lo, a)
+            hi = wp.max(hi, b)
+    return lo, hi
 
 
 @wp.func

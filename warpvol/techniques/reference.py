@@ -40,10 +40,9 @@ from tqdm import tqdm
 
 from .. import device as dev
 from ..geometry.camera import camera_view
-from ..geometry.intersect import ray_box
 from ..geometry.mesh import Surfaces, surface_hit
 from ..geometry.raster import RasterView, view_ray_at
-from ..media.volume import Media, free_flight, in_scatter_at, transmittance_estimate
+from ..media.volume import Media, free_flight, in_scatter_at, media_span, transmittance_estimate
 from ..physics.brdf import brdf_eval
 from ..physics.constants import INF, PI, RAY_EPS, STREAM, TWO_PI
 from ..physics.lights import DIRECTIONAL, Light, light_incident
@@ -198,7 +197,7 @@ def trace_path(cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Li
     events = int(0)
     while True:
         hit, t_surf, n, face = surface_hit(s, o, d, INF)
-        a, b = ray_box(o, d, m.all_min, m.all_max)
+        a, b = media_span(m, o, d)
         ta = wp.max(a, 0.0)
         tb = wp.min(b, t_surf)
         in_media = ta < tb and mu > 0.0
