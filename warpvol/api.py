@@ -125,6 +125,39 @@ class Renderer:
 #: The reference stops at this fraction of ``target_error`` (see ``_render_to_target``).
 SPP_MARGIN = 0.8
 
+#: The slowest convergence ``remaining_error`` trusts, as a power of the knob's nominal rate
+#: 2^-order per doubling: an observed ratio below 2^-1.5 order is taken as a lucky
+#: cancellation between two levels, not as convergence that fast.
+RATE_FLOOR = 1.5
+
+
+def remaining_error(images: list, spreads: list, order: float) -> float:
+    """The relative RMSE still in the finest of three levels a, b, c of a quality knob (each
+    one doubling of it), estimated from the steps u = b - a and v = c - b.
+
+    Model: a level's error is an aligned part that falls by r per doubling (x r^k g, the
+    Richardson assumption) plus a part unrelated from level to level (m_k, mutually
+    orthogonal, also falling by r): a step pattern that moves when the step count changes
+    makes the second. Then |v| = r |u| and u.v = r A - r^2 B / (1 + r^2), where A + B = |u|^2
+    splits |u|^2 into the aligned and the unrelated part, and the error of c is
+    r^2 sqrt(A / (1 - r)^2 + B / (1 + r^2)): r |v| / (1 - r) when the levels' errors line up
+    (Richardson), r |v| / sqrt(1 + r^2) when they are unrelated (where Richardson alone
+    over-estimates up to 4x). ``spreads``: each level's own relative standard error (0 for a
+    deterministic technique); that noise is taken out of |u|^2, |v|^2 and u.v. r is kept in
+    [2^-(RATE_FLOOR order), 0.95]. Weights are relative_rmse's, against c."""
+    a, b, c = images[-3:]
+    s0, s1, s2 = (x * x for x in spreads[-3:])
+    w = 1.0 / (c * c + 1e-2)
+    u, v = b - a, c - b
+    uu = max(float(np.mean(u * u * w)) - s0 - s1, 0.0)
+    vv = max(float(np.mean(v * v * w)) - s1 - s2, 0.0)
+    uv = float(np.mean(u * v * w)) + s1
+    if uu <= 0.0:
+        return float(np.sqrt(vv))
+    r = min(max(np.sqrt(vv / uu), 0.5 ** (RATE_FLOOR * order)), 0.95)
+    B = min(max((uu - uv / r) / (1.0 + r / (1.0 + r * r)), 0.0), uu)
+    return float(r * r * np.sqrt((uu - B) / (1.0 - r) ** 2 + B / (1.0 + r * r)))
+
 
 def _check_target(value) -> float:
     ok = isinstance(value, (int, float)) and not isinstance(value, bool) and 0.0 < float(value) < 1.0
@@ -192,14 +225,7 @@ def _render_to_target(scene, technique: str, device, progress: bool, target: flo
                 spreads.append(spread)
             estimate = float("inf")
             if len(images) >= 3:
-                # the levels' systematic differences: the noise of the two means taken out
-                s0, s1, s2 = (x * x for x in spreads[-3:])
-                d1 = np.sqrt(max(relative_rmse(images[-3], images[-2]) ** 2 - s0 - s1, 0.0))
-                d2 = np.sqrt(max(relative_rmse(images[-2], images[-1]) ** 2 - s1 - s2, 0.0))
-                # geometric convergence, e_2k = r e_k: what the levels still have to go is d2 r / (1 - r);
-                # r observed, but not below the knob's nominal rate 2^-order (a lucky cancellation)
-                ratio = min(max(d2 / d1 if d1 > 0.0 else 0.0, 0.5**order), 0.95)
-                estimate = float(np.hypot(d2 * ratio / (1.0 - ratio), spreads[-1]))
+                estimate = float(np.hypot(remaining_error(images, spreads, order), spreads[-1]))
             if estimate <= target or 2 * level > top:
                 break
             level *= 2
@@ -275,9 +301,10 @@ def render(scene, technique: str = "reference", device: str | None = None, progr
     ``frame.leaves_out``). The technique's quality knob (``Technique.QUALITY``: raymarch,
     light_shafts and particle_glow steps, rbf_propagation grid, depth_impostors slices,
     illumination_network directions, reference spp) is doubled from its start; the error of
-    the finest image is estimated from the last three levels, assuming geometric convergence
-    (e_2k = r e_k: estimate d2 r / (1 - r) with d the differences of successive levels and
-    r = d2 / d1, not below the knob's nominal 2^-order). Where a seed gives independent answers
+    the finest image is estimated from the last three levels (``remaining_error``: geometric
+    convergence by the observed ratio r of successive differences, Richardson for the part of
+    the error that keeps its shape from level to level, and a second term for the part that
+    does not). Where a seed gives independent answers
     of one quality (``Technique.QUALITY_SEED``) each level is the mean of two seeds and their
     standard error is part of the estimate (illumination_network: turned direction sets, the
     window held at the default D's); for the reference, unbiased, it is the whole estimate.
