@@ -20,6 +20,12 @@ to an unbounded region). Each pixel of that box then intersects its own ray with
 triangle: the three edge functions (linear in the image coordinates) say whether the ray
 passes through it, and its plane gives the distance. The nearest hit is kept with an atomic
 minimum, so the result does not depend on the order in which triangles arrive.
+
+One set of kernels rasterises into any list of views (``rasterise``): a camera is one view
+(keys of the nearest triangle), a shadow map one or six (``shadowmap.map_view``; depths).
+A triangle is tried against every view, first with its bounding sphere (``sphere_outside``:
+one point instead of three, as most (triangle, face) pairs of a cube map miss), then with
+``triangle_pixels``' own test of its vertices.
 """
 
 from __future__ import annotations
@@ -129,17 +135,15 @@ def edge_bounds(v: RasterView, p: wp.vec3, q: wp.vec3, lo: wp.vec2, hi: wp.vec2)
 
 
 @wp.func
-def outside_sides(v: RasterView, p: wp.vec3) -> int:
+def outside_sides(v: RasterView, p: wp.vec3, rr: float, uu: float) -> int:
     """Bit mask of the sides of the view's frustum that p lies beyond: left, right, bottom, top,
-    and (perspective) behind the clip plane."""
+    and (perspective) behind the clip plane; rr = |right|^2 and uu = |up|^2 (once per view)."""
     q = p - v.origin
     x = wp.dot(q, v.right)  # sx |right|^2 z
     y = wp.dot(q, v.up)
-    zx = wp.dot(v.right, v.right)
-    zy = wp.dot(v.up, v.up)
     z = wp.where(v.ortho == 0, wp.dot(q, v.fwd), 1.0)
-    zx = zx * z
-    zy = zy * z
+    zx = rr * z
+    zy = uu * z
     # branch-free: most triangles miss most views, and these tests are data-dependent
     mask = wp.where(x < -zx, 1, 0) | wp.where(x > zx, 2, 0) | wp.where(y < -zy, 4, 0) | wp.where(y > zy, 8, 0)
     mask = mask | wp.where(v.ortho == 0 and z <= NEAR, 16, 0)
@@ -149,7 +153,9 @@ def outside_sides(v: RasterView, p: wp.vec3) -> int:
 @wp.func
 def triangle_pixels(v: RasterView, a: wp.vec3, b: wp.vec3, c: wp.vec3):
     """(i0, j0, i1, j1): the pixels whose centres triangle abc may cover (empty: i0 > i1)."""
-    if (outside_sides(v, a) & outside_sides(v, b) & outside_sides(v, c)) != 0:
+    rr = wp.dot(v.right, v.right)
+    uu = wp.dot(v.up, v.up)
+    if (outside_sides(v, a, rr, uu) & outside_sides(v, b, rr, uu) & outside_sides(v, c, rr, uu)) != 0:
         return 1, 1, 0, 0  # all three beyond one side of the frustum
     lo = wp.vec2(INF)
     hi = wp.vec2(-INF)
@@ -164,6 +170,57 @@ def triangle_pixels(v: RasterView, a: wp.vec3, b: wp.vec3, c: wp.vec3):
     i1 = wp.min(int(wp.floor(hi[0] + BOX_SLACK)), v.width - 1)
     j1 = wp.min(int(wp.floor(hi[1] + BOX_SLACK)), v.height - 1)
     return i0, j0, i1, j1
+
+
+@wp.func
+def bounding_sphere(a: wp.vec3, b: wp.vec3, c: wp.vec3):
+    """(centre, squared radius) of a sphere holding triangle abc: about a, through the farther of b
+    and c (cheaper than the smallest one, and the triangles are small), widened against rounding."""
+    return a, 1.002 * wp.max(wp.length_sq(b - a), wp.length_sq(c - a))
+
+
+@wp.func
+def sphere_outside(v: RasterView, m: wp.vec3, r2: float) -> bool:
+    """Whether the sphere (centre m, squared radius r2) lies wholly beyond one side of the view's
+    frustum, or (perspective) behind its origin: a triangle inside it covers no pixel centre. One
+    point against the view instead of ``outside_sides``' three, for a triangle against many views
+    (most of which it misses, as five of a cube map's six faces)."""
+    q = m - v.origin
+    x = wp.abs(wp.dot(q, v.right))
+    y = wp.abs(wp.dot(q, v.up))
+    rr = wp.dot(v.right, v.right)
+    uu = wp.dot(v.up, v.up)
+    # a side plane's normal: right - rr fwd (perspective, |n|^2 = rr + rr^2 as right is orthogonal
+    # to the unit fwd), right (orthographic, offset rr): the centre beyond it by more than r |n|
+    z = float(1.0)
+    nx = rr
+    ny = uu
+    if v.ortho == 0:
+        z = wp.dot(q, v.fwd)
+        if z < 0.0 and z * z > r2:
+            return True
+        nx = rr * (1.0 + rr)
+        ny = uu * (1.0 + uu)
+    dx = x - rr * z
+    dy = y - uu * z
+    return (dx > 0.0 and dx * dx > r2 * nx) or (dy > 0.0 and dy * dy > r2 * ny)
+
+
+@wp.func
+def triangle_box(v: RasterView, a: wp.vec3, b: wp.vec3, c: wp.vec3, m: wp.vec3, r2: float):
+    """``triangle_pixels`` of abc, after the cheaper ``sphere_outside`` test of its bounding sphere
+    (m, r2); the same boxes."""
+    if sphere_outside(v, m, r2):
+        return 1, 1, 0, 0
+    return triangle_pixels(v, a, b, c)
+
+
+@wp.func
+def box_tiles(i0: int, j0: int, i1: int, j1: int) -> int:
+    """How many TILE x TILE pieces the pixel box [i0, i1] x [j0, j1] splits into (0: empty)."""
+    if i0 > i1 or j0 > j1:
+        return 0
+    return ((i1 - i0) / TILE + 1) * ((j1 - j0) / TILE + 1)
 
 
 @wp.func
@@ -199,11 +256,10 @@ KEY_LIMIT = wp.constant(KEY_RANGE)
 
 @wp.func
 def raster_rect(v: RasterView, a: wp.vec3, b: wp.vec3, c: wp.vec3, face: int, i0: int, x0: int, x1: int, y0: int,
-                y1: int, with_keys: int, t_scale: float, depth: wp.array(dtype=float),
-                keys: wp.array(dtype=wp.int64)):
+                y1: int, with_keys: int, t_scale: float, out: wp.array(dtype=Any)):
     """Rasterise the pixels [x0, x1] x [y0, y1] of triangle ``face`` (abc) into view v, a part of its
-    box whose first column is i0: per covered pixel, the nearest distance into ``depth``, or
-    (with_keys = 1) the nearest (distance x t_scale, face) as one int64 key into ``keys``. Image
+    box whose first column is i0: per covered pixel, the nearest distance into ``out`` (float), or
+    (with_keys = 1, ``out`` int64) the nearest (distance x t_scale, face) as one key. Image
     coordinates step from column i0 whatever the part, so every split of the box gives the same
     pixels the same values."""
     e0, e1, e2, facing = triangle_edges(v, a, b, c)
@@ -239,39 +295,9 @@ def raster_rect(v: RasterView, a: wp.vec3, b: wp.vec3, c: wp.vec3, face: int, i0
                     k = v.base + j * v.width + i
                     if with_keys == 1:
                         q = wp.int64(wp.min(t * t_scale, KEY_LIMIT))
-                        wp.atomic_min(keys, k, (q << wp.int64(32)) | wp.int64(face))
+                        wp.atomic_min(out, k, out.dtype((q << wp.int64(32)) | wp.int64(face)))
                     else:
-                        wp.atomic_min(depth, k, t)
-
-
-@wp.func
-def raster_triangle(v: RasterView, a: wp.vec3, b: wp.vec3, c: wp.vec3, face: int, with_keys: int, t_scale: float,
-                    depth: wp.array(dtype=float), keys: wp.array(dtype=wp.int64)):
-    """Rasterise all of triangle ``face`` (abc) into view v (see ``raster_rect``)."""
-    i0, j0, i1, j1 = triangle_pixels(v, a, b, c)
-    if i0 <= i1 and j0 <= j1:
-        raster_rect(v, a, b, c, face, i0, i0, i1, j0, j1, with_keys, t_scale, depth, keys)
-
-
-@wp.func
-def triangle_tiles(v: RasterView, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> int:
-    """How many TILE x TILE pieces triangle abc's box in view v splits into (0: off the view)."""
-    i0, j0, i1, j1 = triangle_pixels(v, a, b, c)
-    if i0 > i1 or j0 > j1:
-        return 0
-    return ((i1 - i0) / TILE + 1) * ((j1 - j0) / TILE + 1)
-
-
-@wp.func
-def raster_triangle_tile(v: RasterView, a: wp.vec3, b: wp.vec3, c: wp.vec3, face: int, tile: int, with_keys: int,
-                         t_scale: float, depth: wp.array(dtype=float), keys: wp.array(dtype=wp.int64)):
-    """Rasterise piece ``tile`` (0 .. triangle_tiles - 1, row by row) of triangle abc's box."""
-    i0, j0, i1, j1 = triangle_pixels(v, a, b, c)
-    nx = (i1 - i0) / TILE + 1
-    x0 = i0 + (tile % nx) * TILE
-    y0 = j0 + (tile / nx) * TILE
-    raster_rect(v, a, b, c, face, i0, x0, wp.min(x0 + TILE - 1, i1), y0, wp.min(y0 + TILE - 1, j1), with_keys,
-                t_scale, depth, keys)
+                        wp.atomic_min(out, k, out.dtype(t))
 
 
 @wp.func
@@ -307,30 +333,57 @@ def key_hit(key: wp.int64, points: wp.array(dtype=wp.vec3), indices: wp.array(dt
 
 
 @wp.kernel
-def raster_visible(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int), view: RasterView,
-                   t_scale: float, no_depth: wp.array(dtype=float), keys: wp.array(dtype=wp.int64)):
-    """One thread per triangle: (distance, triangle) keys of the nearest surface per pixel."""
+def raster_views(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int),
+                 views: wp.array(dtype=RasterView), with_keys: int, t_scale: float, out: wp.array(dtype=Any)):
+    """One thread per triangle: its nearest distances (or keys) into the pixels of every view it
+    reaches (``triangle_box`` culls the others)."""
     f = wp.tid() + offset
     a, b, c = triangle_at(points, indices, f)
-    raster_triangle(view, a, b, c, f, 1, t_scale, no_depth, keys)
+    m, r2 = bounding_sphere(a, b, c)
+    for k in range(views.shape[0]):
+        v = views[k]
+        i0, j0, i1, j1 = triangle_box(v, a, b, c, m, r2)
+        if i0 <= i1 and j0 <= j1:
+            raster_rect(v, a, b, c, f, i0, i0, i1, j0, j1, with_keys, t_scale, out)
 
 
 @wp.kernel
-def count_visible_tiles(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int),
-                        view: RasterView, counts: wp.array(dtype=int)):
+def count_view_tiles(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int),
+                     views: wp.array(dtype=RasterView), counts: wp.array(dtype=int)):
+    """Per triangle: its TILE x TILE pieces over all the views."""
     f = wp.tid() + offset
     a, b, c = triangle_at(points, indices, f)
-    counts[f] = triangle_tiles(view, a, b, c)
+    m, r2 = bounding_sphere(a, b, c)
+    n = int(0)
+    for k in range(views.shape[0]):
+        i0, j0, i1, j1 = triangle_box(views[k], a, b, c, m, r2)
+        n += box_tiles(i0, j0, i1, j1)
+    counts[f] = n
 
 
 @wp.kernel
-def raster_visible_tiles(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int),
-                         view: RasterView, starts: wp.array(dtype=int), t_scale: float,
-                         no_depth: wp.array(dtype=float), keys: wp.array(dtype=wp.int64)):
+def raster_view_tiles(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int),
+                      views: wp.array(dtype=RasterView), starts: wp.array(dtype=int), with_keys: int, t_scale: float,
+                      out: wp.array(dtype=Any)):
+    """One thread per piece (``starts``: exclusive scan of ``count_view_tiles``): piece w - starts[f]
+    of triangle f, counted over the views in turn and row by row within a view's box."""
     w = wp.tid() + offset
     f = owner(starts, w)
     a, b, c = triangle_at(points, indices, f)
-    raster_triangle_tile(view, a, b, c, f, w - starts[f], 1, t_scale, no_depth, keys)
+    m, r2 = bounding_sphere(a, b, c)
+    local = w - starts[f]
+    for k in range(views.shape[0]):
+        v = views[k]
+        i0, j0, i1, j1 = triangle_box(v, a, b, c, m, r2)
+        n = box_tiles(i0, j0, i1, j1)
+        if local < n:
+            nx = (i1 - i0) / TILE + 1
+            x0 = i0 + (local % nx) * TILE
+            y0 = j0 + (local / nx) * TILE
+            raster_rect(v, a, b, c, f, i0, x0, wp.min(x0 + TILE - 1, i1), y0, wp.min(y0 + TILE - 1, j1), with_keys,
+                        t_scale, out)
+            break
+        local -= n
 
 
 @wp.kernel
@@ -342,19 +395,47 @@ def min_into(offset: int, src: wp.array(dtype=Any), dst: wp.array(dtype=Any)):
 
 for _t in (wp.float32, wp.int64):  # declared before the module first loads: it compiles once
     wp.overload(min_into, {"src": wp.array(dtype=_t), "dst": wp.array(dtype=_t)})
+    wp.overload(raster_views, {"out": wp.array(dtype=_t)})
+    wp.overload(raster_view_tiles, {"out": wp.array(dtype=_t)})
 
 
-def tile_starts(count_kernel, inputs: list, device: str):
-    """Pieces per triangle (``count_kernel(offset, points, indices, ..., counts)``), their
-    exclusive scan (where each triangle's pieces start) and the total, the one number read
-    back to size the launch. ``inputs`` begins with (points, indices)."""
-    ntri = inputs[1].shape[0] // 3
+def rasterise(points: wp.array, indices: wp.array, views: wp.array, with_keys: int, t_scale: float, out: wp.array,
+              tiled: bool, device: str) -> wp.array:
+    """The nearest triangle of every pixel of every view, by rasterising: the one driver of
+    camera images (keys) and shadow maps (depths).
+
+    Parameters
+    ----------
+    points : wp.array of vec3, indices : wp.array of int (3 per triangle)
+        The triangles (e.g. from ``split_long_edges``).
+    views : wp.array of RasterView
+        The images; pixel (i, j) of view v lands at out[v.base + j * v.width + i].
+    with_keys : int
+        1: ``out`` is int64 and takes (quantised distance << 32 | triangle) keys (see
+        ``rasterise_visible``); 0: ``out`` is float and takes the distance (scene units).
+    t_scale : float
+        Keys: the distance's quantisation, KEY_RANGE / (a bound of the distances).
+    out : wp.array of int64 or float
+        Filled beforehand with ``NO_HIT`` (keys) or ``INF`` (depths) at the views' pixels.
+    tiled : bool
+        True: one thread per TILE x TILE piece of a triangle's box in a view (balanced for
+        GPUs); False: one thread per triangle. Both give the same ``out``.
+
+    Returns ``out``.
+    """
+    inputs = [points, indices, views]
+    ntri = indices.shape[0] // 3
+    if not tiled:
+        dev.launch_private(raster_views, ntri, [*inputs, with_keys, t_scale], out, min_into, device)
+        return out
+    # pieces per triangle, their exclusive scan and the total: the one number read back to size the launch
     counts = wp.empty(ntri, dtype=int, device=device)
     starts = wp.empty(ntri, dtype=int, device=device)
-    dev.launch(count_kernel, ntri, [*inputs, counts], device)
+    dev.launch(count_view_tiles, ntri, [*inputs, counts], device)
     wp.utils.array_scan(counts, starts, inclusive=False)
-    last = np.concatenate([starts[ntri - 1:].numpy(), counts[ntri - 1:].numpy()])
-    return starts, int(last.sum())
+    total = int(np.concatenate([starts[ntri - 1:].numpy(), counts[ntri - 1:].numpy()]).sum())
+    dev.launch_private(raster_view_tiles, total, [*inputs, starts, with_keys, t_scale], out, min_into, device)
+    return out
 
 
 def rasterise_visible(points: wp.array, indices: wp.array, view: RasterView, t_far: float, keys: wp.array,
@@ -379,16 +460,8 @@ def rasterise_visible(points: wp.array, indices: wp.array, view: RasterView, t_f
 
     Returns ``keys``.
     """
-    t_scale = KEY_RANGE / t_far
-    no_depth = wp.full(1, INF, dtype=float, device=device)
-    if tiled:
-        starts, total = tile_starts(count_visible_tiles, [points, indices, view], device)
-        dev.launch_private(raster_visible_tiles, total, [points, indices, view, starts, t_scale, no_depth], keys,
-                           min_into, device)
-    else:
-        dev.launch_private(raster_visible, indices.shape[0] // 3, [points, indices, view, t_scale, no_depth], keys,
-                           min_into, device)
-    return keys
+    views = wp.array([view], dtype=RasterView, device=device)
+    return rasterise(points, indices, views, 1, KEY_RANGE / t_far, keys, tiled, device)
 
 
 def split_long_edges(vertices: np.ndarray, faces: np.ndarray, max_edge: float):

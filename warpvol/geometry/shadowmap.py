@@ -1,6 +1,7 @@
 """Shadow maps: perspective (spot), cube (point), orthographic (directional), each made by
-rasterising the surfaces into its faces (``map_view``, see geometry/raster.py) or by ray
-casting a ``wp.Mesh`` through its texels; lookups with 2x2 percentage-closer filtering.
+rasterising the surfaces into its faces (``map_view``: raster views, see geometry/raster.py)
+or by ray casting a ``wp.Mesh`` through their texels; lookups with 2x2 percentage-closer
+filtering.
 
 A map stores, per texel, the distance from the light to the nearest surface along the
 texel's ray (radial distance for perspective and cube maps, distance from the map's plane
@@ -26,18 +27,7 @@ from .. import device as dev
 from ..physics.constants import INF
 from ..physics.lights import Light
 from .mesh import Surfaces
-from .raster import (
-    NO_HIT,
-    RasterView,
-    min_into,
-    owner,
-    raster_triangle,
-    raster_triangle_tile,
-    tile_starts,
-    triangle_at,
-    triangle_tiles,
-    view_ray,
-)
+from .raster import RasterView, owner, pixel_ray, rasterise, view_ray
 
 NONE = wp.constant(0)  # no occluders: every point is lit
 PERSPECTIVE = wp.constant(1)
@@ -117,33 +107,6 @@ def map_view(sm: ShadowMap, face: int) -> RasterView:
 
 
 @wp.func
-def cube_side_mask(p: wp.vec3, face: int) -> int:
-    """Which of cube face ``face``'s frustum planes p (relative to the cube's centre) lies beyond:
-    the four sides |u| = z, |w| = z and the face's own plane z = 0."""
-    k = face / 2
-    z = p[k] * (1.0 - 2.0 * float(face % 2))
-    u = p[(k + 1) % 3]
-    w = p[(k + 2) % 3]
-    return (wp.where(u > z, 1, 0) | wp.where(u < -z, 2, 0) | wp.where(w > z, 4, 0) | wp.where(w < -z, 8, 0)
-            | wp.where(z <= 0.0, 16, 0))
-
-
-@wp.func
-def map_faces_touched(sm: ShadowMap, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> int:
-    """Bit f set when triangle abc may reach face f of the map: for cube maps, unless all three
-    vertices lie beyond one plane of the face's frustum (a cheaper test than the general one
-    of the raster, which rejects most (triangle, face) pairs); other maps have one face."""
-    if sm.kind != CUBE:
-        return 1
-    mask = int(0)
-    for face in range(6):
-        beyond = (cube_side_mask(a - sm.origin, face) & cube_side_mask(b - sm.origin, face)
-                  & cube_side_mask(c - sm.origin, face))
-        mask = mask | wp.where(beyond == 0, 1 << face, 0)
-    return mask
-
-
-@wp.func
 def texel_ray(sm: ShadowMap, texel: int):
     """(origin, unit direction) of the ray through texel ``texel`` (0 .. texels(sm) - 1)."""
     res = sm.res
@@ -214,56 +177,25 @@ def texel_world_size(sm: ShadowMap, x: wp.vec3) -> float:
 
 
 @wp.kernel
-def cast_shadow_map(offset: int, s: Surfaces, sm: ShadowMap, depth: wp.array(dtype=float)):
+def map_views(offset: int, maps: wp.array(dtype=ShadowMap), faces: wp.array(dtype=wp.vec2i),
+              views: wp.array(dtype=RasterView)):
+    """The raster view of each (map, face) pair (``map_view``)."""
+    k = wp.tid() + offset
+    views[k] = map_view(maps[faces[k][0]], faces[k][1])
+
+
+@wp.kernel
+def cast_views(offset: int, s: Surfaces, views: wp.array(dtype=RasterView), starts: wp.array(dtype=int),
+               depth: wp.array(dtype=float)):
+    """One ray per pixel of the views (``starts``: exclusive scan of their pixel counts) through the
+    mesh's BVH: the distance to the nearest surface, ``INF`` where the ray escapes."""
     tid = wp.tid() + offset
-    o, d = texel_ray(sm, tid)
+    k = owner(starts, tid)
+    v = views[k]
+    p = tid - starts[k]
+    o, d = pixel_ray(v, p)
     q = wp.mesh_query_ray(s.mesh, o, d, INF)
-    depth[sm.offset + tid] = wp.where(q.result, q.t, INF)
-
-
-@wp.kernel
-def raster_shadow_map(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int), sm: ShadowMap,
-                      faces: int, no_keys: wp.array(dtype=wp.int64), depth: wp.array(dtype=float)):
-    """One thread per triangle: its nearest distances into the texels of each face of the map."""
-    f = wp.tid() + offset
-    a, b, c = triangle_at(points, indices, f)
-    touched = map_faces_touched(sm, a, b, c)
-    for face in range(faces):
-        if (touched >> face) & 1 == 1:
-            raster_triangle(map_view(sm, face), a, b, c, f, 0, 0.0, depth, no_keys)
-
-
-@wp.kernel
-def count_map_tiles(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int), sm: ShadowMap,
-                    faces: int, counts: wp.array(dtype=int)):
-    """Per triangle: its TILE x TILE pieces over the faces of the map it reaches."""
-    f = wp.tid() + offset
-    a, b, c = triangle_at(points, indices, f)
-    touched = map_faces_touched(sm, a, b, c)
-    n = int(0)
-    for face in range(faces):
-        if (touched >> face) & 1 == 1:
-            n += triangle_tiles(map_view(sm, face), a, b, c)
-    counts[f] = n
-
-
-@wp.kernel
-def raster_map_tiles(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int), sm: ShadowMap,
-                     faces: int, starts: wp.array(dtype=int), no_keys: wp.array(dtype=wp.int64),
-                     depth: wp.array(dtype=float)):
-    """One thread per piece (``starts``: exclusive scan of ``count_map_tiles``): the piece's texels."""
-    w = wp.tid() + offset
-    f = owner(starts, w)
-    a, b, c = triangle_at(points, indices, f)
-    touched = map_faces_touched(sm, a, b, c)
-    local = w - starts[f]
-    for face in range(faces):
-        if (touched >> face) & 1 == 1:
-            v = map_view(sm, face)
-            n = triangle_tiles(v, a, b, c)
-            if local >= 0 and local < n:
-                raster_triangle_tile(v, a, b, c, f, local, 0, 0.0, depth, no_keys)
-            local -= n
+    depth[v.base + p] = wp.where(q.result, q.t, INF)
 
 
 def shadow_map_depths(maps: list, device: str, points: wp.array | None = None, indices: wp.array | None = None,
@@ -286,22 +218,26 @@ def shadow_map_depths(maps: list, device: str, points: wp.array | None = None, i
     nearest surface along its ray (scene units; see the module docstring), ``INF`` where none.
     """
     total = max(sum(texels(sm.kind, sm.res) for sm in maps), 1)
+    # every map's faces as raster views (``map_view``), map by map
+    nfaces = [texels(sm.kind, sm.res) // max(sm.res * sm.res, 1) for sm in maps]
+    pairs = [(m, f) for m, n in enumerate(nfaces) for f in range(n)]
+    views = wp.empty(len(pairs), dtype=RasterView, device=device)
+    if pairs:
+        dev.launch(map_views, len(pairs), [wp.array(maps, dtype=ShadowMap, device=device),
+                                           wp.array(pairs, dtype=wp.vec2i, device=device), views], device)
     if points is None:
         depth = wp.empty(total, dtype=float, device=device)
-        for sm in maps:
-            dev.launch(cast_shadow_map, texels(sm.kind, sm.res), [surfaces, sm, depth], device)
+        if pairs:
+            sizes = [maps[m].res * maps[m].res for m, _ in pairs]
+            starts = wp.array(np.cumsum([0, *sizes[:-1]]), dtype=int, device=device)
+            dev.launch(cast_views, sum(sizes), [surfaces, views, starts, depth], device)
         return depth
     depth = wp.full(total, INF, dtype=float, device=device)
-    no_keys = wp.full(1, NO_HIT, dtype=wp.int64, device=device)
-    for sm in maps:
-        faces = texels(sm.kind, sm.res) // (sm.res * sm.res)
-        if tiled:
-            starts, n = tile_starts(count_map_tiles, [points, indices, sm, faces], device)
-            dev.launch_private(raster_map_tiles, n, [points, indices, sm, faces, starts, no_keys], depth, min_into,
-                               device)
-        else:
-            dev.launch_private(raster_shadow_map, indices.shape[0] // 3, [points, indices, sm, faces, no_keys], depth,
-                               min_into, device)
+    first = 0
+    for n in nfaces:  # a map at a time: its texels stay in cache, and a triangle tries only its faces
+        if n:
+            rasterise(points, indices, views[first:first + n], 0, 0.0, depth, tiled, device)
+        first += n
     return depth
 
 
