@@ -83,11 +83,16 @@ def volume_trilinear(volume: wp.uint64, origin: wp.vec3i, dims: wp.vec3i, bmin: 
     a, b, t = grid_corners(dims, bmin, bmax, x)
     a = a + origin
     b = b + origin
-    return trilinear_blend(wp.volume_lookup_f(volume, a[0], a[1], a[2]), wp.volume_lookup_f(volume, b[0], a[1], a[2]),
-                           wp.volume_lookup_f(volume, a[0], b[1], a[2]), wp.volume_lookup_f(volume, b[0], b[1], a[2]),
-                           wp.volume_lookup_f(volume, a[0], a[1], b[2]), wp.volume_lookup_f(volume, b[0], a[1], b[2]),
-                           wp.volume_lookup_f(volume, a[0], b[1], b[2]), wp.volume_lookup_f(volume, b[0], b[1], b[2]),
-                           t)
+    # one lookup in a loop, not eight written out: the lookup inlines a NanoVDB tree walk, and
+    # eight copies of it made medium_density too large to inline into its callers, which then
+    # copied the Media struct per call (light_shafts' march on a homogeneous medium: 2.5x the
+    # time). The corner count is a runtime value so that Warp does not unroll the loop.
+    v = wp.vector(length=8, dtype=float)
+    corners = wp.where(volume != wp.uint64(0), 8, 0)
+    for c in range(corners):
+        v[c] = wp.volume_lookup_f(volume, wp.where(c & 1 == 0, a[0], b[0]), wp.where(c & 2 == 0, a[1], b[1]),
+                                  wp.where(c & 4 == 0, a[2], b[2]))
+    return trilinear_blend(v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], t)
 
 
 #: Majorant cells per axis at most (fewer where the grid has fewer samples).
