@@ -24,7 +24,7 @@ from .geometry.camera import PinholeCamera
 from .geometry.mesh import Surfaces
 from .geometry.shadowmap import ShadowedLights, ShadowMap, shadow_map_depths, shadow_map_for, texels
 from .media.grid import majorant_grid, volume_majorant_grid
-from .media.particles import ParticleBuffers, Particles, particle_majorant
+from .media.particles import ParticleBuffers, Particles, ball_around, particle_majorant
 from .media.rbf import CUTOFF, rbf_majorant
 from .media.volume import BOX, GRID, PARTICLES, RBF, SPHERE, Media, sample_extinction
 from .physics.brdf import Material
@@ -194,11 +194,18 @@ def medium_bounds(m) -> tuple[np.ndarray, np.ndarray] | None:
         return np.asarray(m.center) - half, np.asarray(m.center) + half
     if isinstance(m, GridMedium):
         return np.asarray(m.bounds_min), np.asarray(m.bounds_max)
-    pts = m.centers if isinstance(m, RBFMedium) else m.positions
+    pts, reach = cloud_points(m)
     if not len(pts):
         return None
-    reach = float(CUTOFF) * m.radius if isinstance(m, RBFMedium) else m.radius
     return pts.min(0) - reach, pts.max(0) + reach
+
+
+def cloud_points(m) -> tuple[np.ndarray, float]:
+    """An RBF or particle medium's centres and how far its components reach past them: RBFs
+    CUTOFF radii (their cut-off spheres), particles one radius."""
+    if isinstance(m, RBFMedium):
+        return m.centers, float(CUTOFF) * m.radius
+    return m.positions, m.radius
 
 
 def medium_ball(m, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, float]:
@@ -207,10 +214,9 @@ def medium_ball(m, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, float]:
     the box's circumsphere. Padded by 1e-5 of its size, so that float32 rays stay inside it."""
     if isinstance(m, HomogeneousMedium) and m.shape == "sphere":
         c, r = np.asarray(m.center, np.float64), float(m.radius)
-    elif isinstance(m, (RBFMedium, ParticleMedium)) and len(m.centers if isinstance(m, RBFMedium) else m.positions):
-        pts = np.asarray(m.centers if isinstance(m, RBFMedium) else m.positions, np.float64)
-        c = 0.5 * (pts.min(0) + pts.max(0))
-        r = float(np.sqrt(((pts - c) ** 2).sum(1)).max()) + (float(CUTOFF) * m.radius if isinstance(m, RBFMedium) else m.radius)
+    elif isinstance(m, (RBFMedium, ParticleMedium)) and len(cloud_points(m)[0]):
+        pts, reach = cloud_points(m)
+        c, r = ball_around(np.asarray(pts, np.float64), reach)
     else:
         c, r = 0.5 * (np.asarray(lo, np.float64) + hi), 0.5 * float(np.linalg.norm(np.asarray(hi, np.float64) - lo))
     return c, max(r, 0.0) * (1.0 + 1e-5) + 1e-6

@@ -15,6 +15,13 @@ from ..geometry.intersect import sphere_chord
 from .rbf import box_distance2, coarse_cells
 
 
+def ball_around(centres: np.ndarray, reach: float) -> tuple[np.ndarray, float]:
+    """(centre, radius) of a ball holding spheres of radius at most ``reach`` about ``centres``
+    (N, 3), N >= 1: about the centres' box centre, out to the farthest centre plus ``reach``."""
+    centre = 0.5 * (centres.min(0) + centres.max(0))
+    return centre, float(np.sqrt(((centres - centre) ** 2).sum(1)).max()) + reach
+
+
 def particle_majorant(positions: np.ndarray, radius: float, n: int = 12) -> float:
     """Largest number of spheres touching one coarse cell: a bound of the overlap count."""
     if len(positions) == 0:
@@ -88,10 +95,8 @@ class ParticleBuffers:
         albedo = np.asarray(albedo, np.float32).reshape(-1, 3)
         self.centres, self.radius, self.sigma_t, self.albedo = centres, radius, sigma_t, albedo  # host copies
         n = len(centres)
-        lo, hi = (centres.min(0), centres.max(0)) if n else (np.zeros(3), np.zeros(3))
-        self.centre = 0.5 * (lo + hi)
         r_max = float(np.max(radius)) if n else 0.0
-        self.R = float(np.sqrt(((centres - self.centre) ** 2).sum(1)).max()) + r_max if n else 1.0
+        self.centre, self.R = ball_around(centres, r_max) if n else (np.zeros(3), 1.0)
         s = Particles()
         s.centres = wp.array(centres, dtype=wp.vec3, device=device)
         s.radius = wp.array(radius, dtype=float, device=device)
