@@ -66,7 +66,10 @@ def table(old_path: str, new_path: str) -> str:
 
 
 def cpu_model() -> str:
-    """The CPU's model name and core count (/proc/cpuinfo), else platform's name."""
+    """The CPU's model name and core count (/proc/cpuinfo), else platform's name. Not
+    ``harness.device_name`` / ``git_commit``: this file runs inside older checkouts, whose
+    ``bench`` package may lack them, and the commit it records is the measured checkout's
+    (the working directory's), not this file's."""
     try:
         names = [ln.split(":", 1)[1].strip() for ln in open("/proc/cpuinfo") if ln.startswith("model name")]
         return f"{names[0]}, {len(names)} cores"
