@@ -128,6 +128,29 @@ def in_scatter_at(m: Media, x: wp.vec3, cos_theta: float) -> wp.vec3:
 
 
 @wp.func
+def in_scatter_and_sigma_t(m: Media, x: wp.vec3, cos_theta: float):
+    """(``in_scatter_at``, sigma_t) at x from one lookup of each medium."""
+    s = wp.vec3(0.0)
+    st = wp.vec3(0.0)
+    for i in range(m.count):
+        sig = medium_sigma_t(m, i, x)
+        if wp.max(sig) > 0.0:
+            s += phase_eval(m.phase[i], m.phase_table, cos_theta) * wp.cw_mul(sig, m.albedo[i])
+            st += sig
+    return s, st
+
+
+@wp.func
+def exact_media(m: Media) -> bool:
+    """Whether every medium has a closed-form optical depth (no grid is tracked): then
+    ``transmittance_estimate`` is exact and a free flight's pdf sigma_t T is known."""
+    for i in range(m.count):
+        if m.kind[i] == GRID:
+            return False
+    return True
+
+
+@wp.func
 def scattering_at(m: Media, x: wp.vec3) -> wp.vec3:
     """sum_m sigma_s,m(x): the scattering coefficient (in_scatter_at without the phase function)."""
     s = wp.vec3(0.0)

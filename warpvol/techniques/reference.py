@@ -9,15 +9,17 @@ Per camera sample it follows a path through media and off surfaces:
   in proportion to its unshadowed irradiance integrated along the segment,
   combining two samples with the power heuristic (Veach 1997): equiangular sampling toward
   a point or spot light (Kulla & Fajardo 2012), whose pdf cancels the 1/d^2 of a light
-  inside the medium, and exponential sampling of the majorant. Transmittance toward the
-  camera and the light is exact in homogeneous, particle and RBF media and ratio-tracked
-  (Novak et al. 2014) in grids; surfaces occlude through a ``wp.Mesh`` query. A directional
-  light has no equiangular strategy; its sample is the segment's first real collision
-  found by free flight, whose weight stays bounded however loose the majorant is.
+  inside the medium, and the segment's first real collision, the one the path goes on from
+  (pdf sigma_t T: it lands where the medium is, and its weight stays bounded however loose
+  the majorant). Transmittance toward the camera and the light is exact in homogeneous,
+  particle and RBF media and ratio-tracked (Novak et al. 2014) in grids; there, where the
+  collision's pdf is not known exactly, a point light's second sample is exponential
+  sampling of the majorant. Surfaces occlude through a ``wp.Mesh`` query.
 * Lambertian + normalised Phong surfaces with direct light and cosine-sampled bounces;
   escaping rays see the background.
 * ``max_bounces`` counts scattering events (volume or surface): 1 is single scattering,
-  -1 unlimited (Russian roulette after 5 events, survival at most 0.995 an event). Mitsuba's max_depth is one more.
+  -1 unlimited (Russian roulette on the throughput after ``ROULETTE_AFTER`` events, survival
+  at most 0.995 an event). Mitsuba's max_depth is one more.
   The background is a light too: after the last event the path's sampled continuation
   still adds the background if it escapes (``sky_after_last``), so single scattering
   includes the sky's light scattered once, as Mitsuba's environment emitter does.
@@ -29,7 +31,7 @@ A ``@wp.func`` receives the RNG state by value: its draws do not advance the cal
 state. Every call that draws therefore gets a fresh stream, ``wp.rand_init(wp.randi(rng), STREAM)``,
 drawn inline by the caller, so no two estimates that are multiplied share random numbers (a
 product of correlated estimates is biased). The one sharing on purpose: a segment's direct
-light and its free flight, which are only summed (common random numbers, less variance).
+light uses the path's free flight as a sample; the two are only summed.
 """
 
 from __future__ import annotations
@@ -42,11 +44,13 @@ from .. import device as dev
 from ..geometry.camera import camera_view
 from ..geometry.mesh import Surfaces, surface_hit
 from ..geometry.raster import RasterView, view_ray_at
-from ..media.volume import Media, free_flight, in_scatter_at, media_span, transmittance_estimate
+from ..media.volume import (Media, exact_media, exact_optical_depth, free_flight, in_scatter_and_sigma_t, in_scatter_at,
+                            media_span, sigma_t_at, transmittance_estimate)
 from ..physics.brdf import brdf_eval
 from ..physics.constants import INF, PI, RAY_EPS, STREAM, TWO_PI
 from ..physics.lights import DIRECTIONAL, Light, light_incident
 from ..physics.phase import orthonormal_basis, phase_eval, phase_sample
+from ..physics.transmittance import transmittance_rgb
 from ..pipeline import Setting, Stage, Technique
 from ..shading import light_transmittance, surface_direct
 from ..upload import SceneUploads, pinhole
@@ -60,6 +64,11 @@ SETTINGS = {
 }
 
 
+#: Russian roulette on the throughput starts after this many scattering events (5 before:
+#: starting after 2 made rbf-single 1.4x and fog-box 1.6x faster for 1.3x and 1.2x the variance).
+ROULETTE_AFTER = wp.constant(2)
+
+
 @wp.struct
 class PathSettings:
     max_events: int
@@ -68,7 +77,7 @@ class PathSettings:
     spp: int  # samples per pixel in this launch
     slots: int  # threads that share a pixel's samples
     seed: int
-    survival: float  # Russian roulette: the most a path survives an event with (after 5)
+    survival: float  # Russian roulette: the most a path survives an event with (after ROULETTE_AFTER events)
 
 
 @wp.func
@@ -104,12 +113,28 @@ def segment_irradiance(light: Light, o: wp.vec3, d: wp.vec3, ta: float, tb: floa
 
 
 @wp.func
+def equiangular_pdf(h: float, delta: float, th_a: float, th_b: float, t: float) -> float:
+    """The pdf of equiangular sampling (Kulla & Fajardo 2012) at t: the light lies h from the
+    ray, beside t = delta; the segment subtends the angles th_a .. th_b."""
+    return h / ((th_b - th_a) * (h * h + (t - delta) * (t - delta)))
+
+
+@wp.func
 def segment_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), o: wp.vec3, d: wp.vec3,
-                   ta: float, tb: float, c: int, rng: wp.uint32) -> wp.vec3:
-    """Direct light scattered toward -d from the media on [ta, tb] (MIS of equiangular and majorant
-    sampling) from one light, chosen in proportion to ``segment_irradiance`` and weighted by
-    one over that probability: each light costs transmittances through the media, so a scene
-    with 8 lights pays for one per segment, mostly the one the segment passes closest to."""
+                   ta: float, tb: float, t_ff: float, i_ff: int, c: int, rng: wp.uint32) -> wp.vec3:
+    """Direct light scattered toward -d from the media on [ta, tb] from one light, chosen in
+    proportion to ``segment_irradiance`` and weighted by one over that probability: each light
+    costs transmittances through the media, so a scene with 8 lights pays for one per segment,
+    mostly the one the segment passes closest to.
+
+    Two strategies, combined with the power heuristic: equiangular sampling toward a point
+    or spot light, and the segment's free flight (t_ff, i_ff), the first real collision that
+    the path itself goes on from (i_ff < 0: none), whose pdf is sigma_t(t) T(ta, t). Its
+    estimate albedo_i p_i E T_light (medium i_ff chosen with sigma_i / sigma_t) stays bounded
+    however loose the majorant, and it lands where the medium is (a Gaussian's core, not its
+    thin tails). Its pdf is exact when every medium is (``exact_media``); with a tracked grid
+    only an estimate of T is known, so a point light's second strategy there is exponential
+    sampling of the majorant, whose pdf is exact."""
     L = wp.vec3(0.0)
     mu = m.majorant[c]
     # one pass of weighted reservoir sampling: light l replaces the choice with probability
@@ -127,42 +152,55 @@ def segment_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), o: wp.v
         return L
     light = lights[chosen]
     point_like = light.kind != DIRECTIONAL
+    exact = exact_media(m)
     delta = float(0.0)
     h = float(1.0)
     th_a = float(0.0)
     th_b = float(0.0)
+    equiangular = False
     if point_like:
         delta = wp.dot(light.position - o, d)
         h = wp.max(wp.length(light.position - (o + delta * d)), 1.0e-7)
         th_a = wp.atan2(ta - delta, h)
         th_b = wp.atan2(tb - delta, h)
-        if th_b - th_a > 1.0e-12:
-            t = delta + h * wp.tan(th_a + (th_b - th_a) * wp.randf(rng))
-            t = wp.clamp(t, ta, tb)
-            pdf_e = h / ((th_b - th_a) * (h * h + (t - delta) * (t - delta)))
+        equiangular = th_b - th_a > 1.0e-12
+    if equiangular:
+        t = wp.clamp(delta + h * wp.tan(th_a + (th_b - th_a) * wp.randf(rng)), ta, tb)
+        pdf_e = equiangular_pdf(h, delta, th_a, th_b, t)
+        if exact:
+            x = o + t * d
+            wi, dist, e = light_incident(light, x)
+            fs, sig = in_scatter_and_sigma_t(m, x, wp.dot(d, wi))
+            if dist > 0.0 and wp.max(fs) > 0.0:
+                tc = transmittance_rgb(exact_optical_depth(m, o, d, ta, t))
+                pdf_f = sig[c] * tc[c]
+                tl = light_transmittance(m, s, x, wi, dist, c, wp.rand_init(wp.randi(rng), STREAM), 0)
+                w = pdf_e * pdf_e / (pdf_e * pdf_e + pdf_f * pdf_f)
+                L += wp.cw_mul(wp.cw_mul(fs, e), wp.cw_mul(tl, tc)) * (w / pdf_e)
+        else:
             pdf_m = mu * wp.exp(-mu * (t - ta))
             w = pdf_e * pdf_e / (pdf_e * pdf_e + pdf_m * pdf_m)
             L += scatter_sample(m, s, light, o, d, ta, t, c, wp.rand_init(wp.randi(rng), STREAM)) * (w / pdf_e)
-    if mu > 0.0 and not point_like:
-        # a directional light has no equiangular strategy to share the segment with, and
-        # majorant sampling alone weighs a sample by e^(mu t): unbounded where a loose
-        # majorant meets sparse media (particle clouds). The segment's first real
-        # collision has pdf sigma_t T; choosing the medium i it belongs to with
-        # probability sigma_i / sigma_t leaves the estimate albedo_i p_i E T_l.
-        t, i = free_flight(m, o, d, ta, tb, c, wp.rand_init(wp.randi(rng), STREAM))
-        if i >= 0:
-            x = o + t * d
+    if exact or not point_like:
+        if i_ff >= 0:
+            x = o + t_ff * d
             wi, dist, e = light_incident(light, x)
-            fs = m.albedo[i] * phase_eval(m.phase[i], m.phase_table, wp.dot(d, wi))
-            tl = light_transmittance(m, s, x, wi, dist, c, wp.rand_init(wp.randi(rng), STREAM), 0)
-            L += wp.cw_mul(wp.cw_mul(fs, e), tl)
+            w = float(1.0)
+            if equiangular:
+                pdf_e = equiangular_pdf(h, delta, th_a, th_b, t_ff)
+                pdf_f = sigma_t_at(m, x, False)[c] * wp.exp(-exact_optical_depth(m, o, d, ta, t_ff)[c])
+                w = pdf_f * pdf_f / (pdf_e * pdf_e + pdf_f * pdf_f)
+            fs = m.albedo[i_ff] * phase_eval(m.phase[i_ff], m.phase_table, wp.dot(d, wi))
+            if dist > 0.0 and w > 0.0 and wp.max(fs) > 0.0:
+                tl = light_transmittance(m, s, x, wi, dist, c, wp.rand_init(wp.randi(rng), STREAM), 0)
+                L += wp.cw_mul(wp.cw_mul(fs, e), tl) * w
     elif mu > 0.0:
         t = ta - wp.log(1.0 - wp.randf(rng)) / mu
         if t < tb:
             pdf_m = mu * wp.exp(-mu * (t - ta))
             pdf_e = float(0.0)
-            if point_like and th_b - th_a > 1.0e-12:
-                pdf_e = h / ((th_b - th_a) * (h * h + (t - delta) * (t - delta)))
+            if equiangular:
+                pdf_e = equiangular_pdf(h, delta, th_a, th_b, t)
             if pdf_m > 0.0:
                 w = pdf_m * pdf_m / (pdf_e * pdf_e + pdf_m * pdf_m)
                 L += scatter_sample(m, s, light, o, d, ta, t, c, wp.rand_init(wp.randi(rng), STREAM)) * (w / pdf_m)
@@ -201,20 +239,16 @@ def trace_path(cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Li
         ta = wp.max(a, 0.0)
         tb = wp.min(b, t_surf)
         in_media = ta < tb and mu > 0.0
-        # the segment's direct light and its free flight draw from one stream (common random
-        # numbers): their estimates are only summed, so each stays unbiased, and the shared
-        # draws lower the sum's variance (fog-box 80x60, 64 spp: per-pixel noise 0.37 of the
-        # mean against 0.51 with independent streams)
-        segment = wp.randi(rng)
-        if in_media:
-            L += wp.cw_mul(beta, segment_direct(m, s, lights, o, d, ta, tb, c, wp.rand_init(segment, STREAM)))
-        # the next real collision: the earliest of the media components' own (exact or tracked)
+        # the next real collision: the earliest of the media components' own (exact or tracked);
+        # the segment's direct light reuses it as one of its samples
         collided = bool(False)
         t = ta
         i = int(-1)
         if in_media:
-            t, i = free_flight(m, o, d, ta, tb, c, wp.rand_init(segment, STREAM))
+            t, i = free_flight(m, o, d, ta, tb, c, wp.rand_init(wp.randi(rng), STREAM))
             collided = i >= 0
+            L += wp.cw_mul(beta, segment_direct(m, s, lights, o, d, ta, tb, t, i, c,
+                                                wp.rand_init(wp.randi(rng), STREAM)))
         if collided:
             events += 1
             x = o + t * d
@@ -247,7 +281,7 @@ def trace_path(cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Li
         else:
             L += wp.cw_mul(beta, background)
             break
-        if events > 5:
+        if events > ROULETTE_AFTER:
             # survive in proportion to the throughput, at most ``SURVIVAL`` per event
             q = wp.min(wp.max(beta[0], wp.max(beta[1], beta[2])), st.survival)
             if wp.randf(rng) >= q:
@@ -279,7 +313,7 @@ def trace_paths(offset: int, cam: RasterView, m: Media, s: Surfaces, lights: wp.
     accum[tid] = accum[tid] + wp.vec3d(wp.float64(total[0]), wp.float64(total[1]), wp.float64(total[2]))
 
 
-#: Russian roulette's cap on survival per event after the fifth: a path in a bright, dense
+#: Russian roulette's cap on survival per event once it starts: a path in a bright, dense
 #: medium (albedo -> 1) ends after about 1 / (1 - SURVIVAL) more events while its weight
 #: grows by 1 / SURVIVAL per event (0.95 gave furnace paths weights of 100 and more: heavy tails).
 SURVIVAL = 0.995
