@@ -3,7 +3,6 @@ against the reference. Tolerances come from Monte Carlo standard errors (estimat
 independent seeds, or exact where the estimator's variance is known) and, for the ray
 marcher, from its own step-halving error estimate."""
 
-
 import numpy as np
 import pytest
 

@@ -44,8 +44,8 @@ from .. import device as dev
 from ..geometry.camera import camera_view
 from ..geometry.mesh import Surfaces, surface_hit
 from ..geometry.raster import RasterView, view_ray_at
-from ..media.volume import (Media, exact_media, exact_optical_depth, free_flight, in_scatter_and_sigma_t, in_scatter_at,
-                            media_span, sigma_t_at, transmittance_estimate)
+from ..media.volume import (Media, depths_and_extinction, exact_media, free_flight, in_scatter_at, media_span,
+                            transmittance_estimate)
 from ..physics.brdf import brdf_eval
 from ..physics.constants import INF, PI, RAY_EPS, STREAM, TWO_PI
 from ..physics.lights import DIRECTIONAL, Light, light_incident
@@ -164,36 +164,47 @@ def segment_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), o: wp.v
         th_a = wp.atan2(ta - delta, h)
         th_b = wp.atan2(tb - delta, h)
         equiangular = th_b - th_a > 1.0e-12
-    if equiangular:
+    if exact and equiangular:
+        # both samples' optical depths from ta and extinctions from one walk through the media
         t = wp.clamp(delta + h * wp.tan(th_a + (th_b - th_a) * wp.randf(rng)), ta, tb)
         pdf_e = equiangular_pdf(h, delta, th_a, th_b, t)
-        if exact:
-            x = o + t * d
-            wi, dist, e = light_incident(light, x)
-            fs, sig = in_scatter_and_sigma_t(m, x, wp.dot(d, wi))
-            if dist > 0.0 and wp.max(fs) > 0.0:
-                tc = transmittance_rgb(exact_optical_depth(m, o, d, ta, t))
-                pdf_f = sig[c] * tc[c]
-                tl = light_transmittance(m, s, x, wi, dist, c, wp.rand_init(wp.randi(rng), STREAM), 0)
-                w = pdf_e * pdf_e / (pdf_e * pdf_e + pdf_f * pdf_f)
-                L += wp.cw_mul(wp.cw_mul(fs, e), wp.cw_mul(tl, tc)) * (w / pdf_e)
-        else:
-            pdf_m = mu * wp.exp(-mu * (t - ta))
-            w = pdf_e * pdf_e / (pdf_e * pdf_e + pdf_m * pdf_m)
-            L += scatter_sample(m, s, light, o, d, ta, t, c, wp.rand_init(wp.randi(rng), STREAM)) * (w / pdf_e)
-    if exact or not point_like:
+        x = o + t * d
+        wi, dist, e = light_incident(light, x)
+        t_f = wp.where(i_ff >= 0, t_ff, ta)
+        tau_e, tau_f, fs, sig_e, sig_f = depths_and_extinction(m, o, d, ta, t, t_f, wp.dot(d, wi))
+        if dist > 0.0 and wp.max(fs) > 0.0:
+            tc = transmittance_rgb(tau_e)
+            pdf_f = sig_e[c] * tc[c]
+            tl = light_transmittance(m, s, x, wi, dist, c, wp.rand_init(wp.randi(rng), STREAM), 0)
+            w = pdf_e * pdf_e / (pdf_e * pdf_e + pdf_f * pdf_f)
+            L += wp.cw_mul(wp.cw_mul(fs, e), wp.cw_mul(tl, tc)) * (w / pdf_e)
         if i_ff >= 0:
             x = o + t_ff * d
             wi, dist, e = light_incident(light, x)
-            w = float(1.0)
-            if equiangular:
-                pdf_e = equiangular_pdf(h, delta, th_a, th_b, t_ff)
-                pdf_f = sigma_t_at(m, x, False)[c] * wp.exp(-exact_optical_depth(m, o, d, ta, t_ff)[c])
-                w = pdf_f * pdf_f / (pdf_e * pdf_e + pdf_f * pdf_f)
+            pdf_e = equiangular_pdf(h, delta, th_a, th_b, t_ff)
+            pdf_f = sig_f[c] * wp.exp(-tau_f[c])
+            w = pdf_f * pdf_f / (pdf_e * pdf_e + pdf_f * pdf_f)
             fs = m.albedo[i_ff] * phase_eval(m.phase[i_ff], m.phase_table, wp.dot(d, wi))
             if dist > 0.0 and w > 0.0 and wp.max(fs) > 0.0:
                 tl = light_transmittance(m, s, x, wi, dist, c, wp.rand_init(wp.randi(rng), STREAM), 0)
                 L += wp.cw_mul(wp.cw_mul(fs, e), tl) * w
+        return L * (total / w_chosen)
+    if equiangular:
+        t = wp.clamp(delta + h * wp.tan(th_a + (th_b - th_a) * wp.randf(rng)), ta, tb)
+        pdf_e = equiangular_pdf(h, delta, th_a, th_b, t)
+        pdf_m = mu * wp.exp(-mu * (t - ta))
+        w = pdf_e * pdf_e / (pdf_e * pdf_e + pdf_m * pdf_m)
+        L += scatter_sample(m, s, light, o, d, ta, t, c, wp.rand_init(wp.randi(rng), STREAM)) * (w / pdf_e)
+    if exact or not point_like:
+        # no equiangular sample to share with (a directional light; a point light on the
+        # segment's line): the free flight alone, weight 1, no pdf needed (grids too)
+        if i_ff >= 0:
+            x = o + t_ff * d
+            wi, dist, e = light_incident(light, x)
+            fs = m.albedo[i_ff] * phase_eval(m.phase[i_ff], m.phase_table, wp.dot(d, wi))
+            if wp.max(fs) > 0.0:
+                tl = light_transmittance(m, s, x, wi, dist, c, wp.rand_init(wp.randi(rng), STREAM), 0)
+                L += wp.cw_mul(wp.cw_mul(fs, e), tl)
     elif mu > 0.0:
         t = ta - wp.log(1.0 - wp.randf(rng)) / mu
         if t < tb:
