@@ -414,7 +414,7 @@ def write_report(out: Path, name: str) -> Path | None:
     for path in files:
         doc = json.loads(path.read_text())
         rows = doc["rows"]
-        if not rows:
+        if not rows or doc.get("sweep") != name:  # empty, or another tool's data kept beside the sweep's
             continue
         png = path.with_suffix(".png")
         section = SECTIONS[sweep.kind](rows, png)
