@@ -422,15 +422,17 @@ def free_flight(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: float, c: int, 
                     a = wp.max(tc - s, t0)
                     b = wp.min(tc + s, best)
                     if a < b:
-                        # optical depth from a to t: K (erf(z_t) - erf(z_a)), K = sig g r sqrt(pi / 2)
+                        # optical depth from a to t: K (erf(z_t) - erf(z_a)), K = sig g r sqrt(pi / 2);
+                        # at most 2K, so an exponential variate above that needs no erf at all
                         K = wp.float64(sig * g * r * SQRT_HALF_PI)
-                        ea = gaussian_erf(a, tc, r)
                         e = wp.float64((-wp.log(1.0 - wp.randf(rng))))
-                        if e < K * (gaussian_erf(b, tc, r) - ea):
-                            z = wp.erfinv(ea + e / K)
-                            t = tc + SQRT2 * r * wp.float32(z)
-                            best = wp.clamp(t, a, b)
-                            who = i
+                        if e < wp.float64(2.0) * K:
+                            ea = gaussian_erf(a, tc, r)
+                            if e < K * (gaussian_erf(b, tc, r) - ea):
+                                z = wp.erfinv(ea + e / K)
+                                t = tc + SQRT2 * r * wp.float32(z)
+                                best = wp.clamp(t, a, b)
+                                who = i
     return best, who
 
 
