@@ -40,7 +40,6 @@ def f_exact(u: np.ndarray, v: np.ndarray, n: int = 4096) -> np.ndarray:
 def f_table() -> np.ndarray:
     """F on a (TABLE_NU, TABLE_NV) grid: u = expm1(i / (NU-1) * log1p(U_MAX)), v = j / (NV-1) * pi/2."""
     us = np.expm1(np.linspace(0.0, np.log1p(float(U_MAX)), TABLE_NU))
-    vs = np.linspace(0.0, 0.5 * np.pi, TABLE_NV)
     # cumulative integral over v for every u, with 64 sub-steps per table cell (Simpson)
     sub = 64
     fine = np.linspace(0.0, 0.5 * np.pi, (TABLE_NV - 1) * sub + 1)

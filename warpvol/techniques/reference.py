@@ -329,6 +329,12 @@ def trace_paths(offset: int, cam: RasterView, m: Media, s: Surfaces, lights: wp.
 #: grows by 1 / SURVIVAL per event (0.95 gave furnace paths weights of 100 and more: heavy tails).
 SURVIVAL = 0.995
 
+#: Paths from which a CPU pass is split over the cores: a path costs from a few microseconds
+#: (a ray that escapes) to a millisecond (rbf-thick-fog: 1000 RBFs, 8 lights), so 2048 of them
+#: outweigh handing out the chunks (~1 ms) where device.MIN_SPLIT's simple threads would
+#: leave a 32x24 image at 8 spp (6144 paths, 4 s) on one core.
+SPLIT_PATHS = 2048
+
 #: Threads a launch should keep in flight: a GPU wants hundreds of thousands (pixels x sample
 #: slots); the CPU splits one thread per pixel over its cores (``device.launch`` by work).
 IN_FLIGHT = {"cpu": 1, "cuda": 1 << 18}
@@ -384,7 +390,7 @@ class Reference(Technique):
             st.seed = (settings["seed"] * 1_000_003 + i) % (2**31)
             dev.launch(trace_paths, npix * st.slots, [cam, u.media.struct, u.surfaces, u.lights,
                                                       wp.vec3(*scene.background), st, accum], self.device,
-                       work=st.spp / st.slots)
+                       work=st.spp / st.slots, min_split=SPLIT_PATHS)
         self.image = (accum.numpy().reshape(slots, npix, 3).sum(0) / spp).astype(np.float32)
 
     def output(self):
