@@ -30,8 +30,10 @@ launches), so distance sampling stays exact per channel. Per-pixel sums go to fl
 A ``@wp.func`` receives the RNG state by value: its draws do not advance the caller's
 state. Every call that draws therefore gets a fresh stream, ``wp.rand_init(wp.randi(rng), STREAM)``,
 drawn inline by the caller, so no two estimates that are multiplied share random numbers (a
-product of correlated estimates is biased). The one sharing on purpose: a segment's direct
-light uses the path's free flight as a sample; the two are only summed.
+product of correlated estimates is biased). The sharing on purpose: a segment's direct light
+uses the path's free flight as a sample (exact media), or draws from the free flight's stream
+(tracked grids: its majorant sample is then delta tracking's first tentative collision); the
+two are only summed.
 """
 
 from __future__ import annotations
