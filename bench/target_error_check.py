@@ -27,7 +27,7 @@ CASES = {
     "raymarch": (0.01, "random_scene", [{"steps": 1024, "shadow_steps": 1024}], "1024 steps"),
     "light_shafts": (0.02, "random_scene", [{"steps": 16384}], "16384 steps"),
     "particle_glow": (0.01, "random_scene", [{"steps": 4096}], "4096 steps"),
-    "rbf_propagation": (0.05, "random_scene", [{"grid": 128}], "grid 128"),
+    "rbf_propagation": (0.05, "random_scene", [{"grid": 256}], "grid 256"),
     "depth_impostors": (0.02, "random_cloud", [{"slices": 512}], "512 slices"),
     "illumination_network": (0.03, "random_cloud", [{"directions": 1024, "direction_seed": k, "window_at": 128}
                                                     for k in (3, 4)], "two turned sets of 1024 directions"),
