@@ -347,10 +347,10 @@ def depths_and_extinction(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: float
                 b = tc + h
                 if a < wp.min(b, wp.max(t1, t2)):
                     mass = g * r * SQRT_HALF_PI
-                    if a == tc - h and b <= wp.min(t1, t2):  # the whole chord on both: one erf (odd)
-                        whole = mass * 2.0 * wp.erf(h / s2r)
-                        acc1 += whole
-                        acc2 += whole
+                    if b <= wp.min(t1, t2):  # the same chord [a, b] on both
+                        both = mass * erf_between(a, b, tc, h, r)
+                        acc1 += both
+                        acc2 += both
                     else:
                         ea = wp.erf((a - tc) / s2r)
                         if a < wp.min(b, t1):

@@ -125,7 +125,7 @@ def equiangular_pdf(h: float, delta: float, th_a: float, th_b: float, t: float) 
 
 @wp.func
 def segment_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), o: wp.vec3, d: wp.vec3,
-                   ta: float, tb: float, t_ff: float, i_ff: int, c: int, rng: wp.uint32) -> wp.vec3:
+                   ta: float, tb: float, t_ff: float, i_ff: int, exact: bool, c: int, rng: wp.uint32) -> wp.vec3:
     """Direct light scattered toward -d from the media on [ta, tb] from one light, chosen in
     proportion to ``segment_irradiance`` and weighted by one over that probability: each light
     costs transmittances through the media, so a scene with 8 lights pays for one per segment,
@@ -136,7 +136,7 @@ def segment_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), o: wp.v
     the path itself goes on from (i_ff < 0: none), whose pdf is sigma_t(t) T(ta, t). Its
     estimate albedo_i p_i E T_light (medium i_ff chosen with sigma_i / sigma_t) stays bounded
     however loose the majorant, and it lands where the medium is (a Gaussian's core, not its
-    thin tails). Its pdf is exact when every medium is (``exact_media``); with a tracked grid
+    thin tails). Its pdf is exact when every medium is (``exact``: ``exact_media``); with a tracked grid
     only an estimate of T is known, so a point light's second strategy there is exponential
     sampling of the majorant, whose pdf is exact."""
     L = wp.vec3(0.0)
@@ -156,7 +156,6 @@ def segment_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), o: wp.v
         return L
     light = lights[chosen]
     point_like = light.kind != DIRECTIONAL
-    exact = exact_media(m)
     delta = float(0.0)
     h = float(1.0)
     th_a = float(0.0)
@@ -168,47 +167,46 @@ def segment_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), o: wp.v
         th_a = wp.atan2(ta - delta, h)
         th_b = wp.atan2(tb - delta, h)
         equiangular = th_b - th_a > 1.0e-12
+    # the free flight's optical depth from ta and sigma_t, for its MIS weight against equiangular
+    # sampling in exact media (taken with the equiangular sample's in one walk)
+    tau_f = wp.vec3(0.0)
+    sig_f = wp.vec3(0.0)
     if exact and equiangular:
-        # both samples' optical depths from ta and extinctions from one walk through the media
         t = wp.clamp(delta + h * wp.tan(th_a + (th_b - th_a) * wp.randf(rng)), ta, tb)
         pdf_e = equiangular_pdf(h, delta, th_a, th_b, t)
         x = o + t * d
         wi, dist, e = light_incident(light, x)
         t_f = wp.where(i_ff >= 0, t_ff, ta)
-        tau_e, tau_f, fs, sig_e, sig_f = depths_and_extinction(m, o, d, ta, t, t_f, wp.dot(d, wi))
+        tau_e, tf, fs, sig_e, sf = depths_and_extinction(m, o, d, ta, t, t_f, wp.dot(d, wi))
+        tau_f = tf
+        sig_f = sf
         if dist > 0.0 and wp.max(fs) > 0.0:
             tc = transmittance_rgb(tau_e)
             pdf_f = sig_e[c] * tc[c]
             tl = light_transmittance(m, s, x, wi, dist, c, wp.rand_init(wp.randi(rng), STREAM), 0)
             w = pdf_e * pdf_e / (pdf_e * pdf_e + pdf_f * pdf_f)
             L += wp.cw_mul(wp.cw_mul(fs, e), wp.cw_mul(tl, tc)) * (w / pdf_e)
-        if i_ff >= 0:
-            x = o + t_ff * d
-            wi, dist, e = light_incident(light, x)
-            pdf_e = equiangular_pdf(h, delta, th_a, th_b, t_ff)
-            pdf_f = sig_f[c] * wp.exp(-tau_f[c])
-            w = pdf_f * pdf_f / (pdf_e * pdf_e + pdf_f * pdf_f)
-            fs = m.albedo[i_ff] * phase_eval(m.phase[i_ff], m.phase_table, wp.dot(d, wi))
-            if dist > 0.0 and w > 0.0 and wp.max(fs) > 0.0:
-                tl = light_transmittance(m, s, x, wi, dist, c, wp.rand_init(wp.randi(rng), STREAM), 0)
-                L += wp.cw_mul(wp.cw_mul(fs, e), tl) * w
-        return L * (total / w_chosen)
-    if equiangular:
+    elif equiangular:
         t = wp.clamp(delta + h * wp.tan(th_a + (th_b - th_a) * wp.randf(rng)), ta, tb)
         pdf_e = equiangular_pdf(h, delta, th_a, th_b, t)
         pdf_m = mu * wp.exp(-mu * (t - ta))
         w = pdf_e * pdf_e / (pdf_e * pdf_e + pdf_m * pdf_m)
         L += scatter_sample(m, s, light, o, d, ta, t, c, wp.rand_init(wp.randi(rng), STREAM)) * (w / pdf_e)
     if exact or not point_like:
-        # no equiangular sample to share with (a directional light; a point light on the
-        # segment's line): the free flight alone, weight 1, no pdf needed (grids too)
+        # the free flight: weight 1 where there is no equiangular sample to share with (a
+        # directional light, in grids too; a point light on the segment's line)
         if i_ff >= 0:
             x = o + t_ff * d
             wi, dist, e = light_incident(light, x)
+            w = float(1.0)
+            if equiangular:
+                pdf_e = equiangular_pdf(h, delta, th_a, th_b, t_ff)
+                pdf_f = sig_f[c] * wp.exp(-tau_f[c])
+                w = pdf_f * pdf_f / (pdf_e * pdf_e + pdf_f * pdf_f)
             fs = m.albedo[i_ff] * phase_eval(m.phase[i_ff], m.phase_table, wp.dot(d, wi))
-            if wp.max(fs) > 0.0:
+            if dist > 0.0 and w > 0.0 and wp.max(fs) > 0.0:
                 tl = light_transmittance(m, s, x, wi, dist, c, wp.rand_init(wp.randi(rng), STREAM), 0)
-                L += wp.cw_mul(wp.cw_mul(fs, e), tl)
+                L += wp.cw_mul(wp.cw_mul(fs, e), tl) * w
     elif mu > 0.0:
         t = ta - wp.log(1.0 - wp.randf(rng)) / mu
         if t < tb:
@@ -272,7 +270,7 @@ def trace_path(cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Li
             # and a point light: half the variance)
             if exact:
                 segment = wp.randi(rng)
-            L += wp.cw_mul(beta, segment_direct(m, s, lights, o, d, ta, tb, t, i, c,
+            L += wp.cw_mul(beta, segment_direct(m, s, lights, o, d, ta, tb, t, i, exact, c,
                                                 wp.rand_init(segment, STREAM)))
         if collided:
             events += 1
