@@ -71,8 +71,10 @@ def main(argv=None) -> None:
                          "knob": {knob: frame.settings[knob]}, "seconds": seconds})
             print(f"{technique} {kind}({seed}): estimate {frame.error_estimate:.3g} truth {truth:.3g} "
                   f"{rows[-1]['knob']} {seconds:.1f} s", flush=True)
-    command = "PYTHONPATH=. .venv/bin/python -m bench.target_error_check" + " ".join(
-        ["", *(f"--{k} {v}" for k, v in (("first", args.first), ("out", args.out)) if v != ap.get_default(k))])
+    command = "PYTHONPATH=. .venv/bin/python -m bench.target_error_check"
+    for key in ("first", "out"):  # the options that change which scenes or where they go
+        if getattr(args, key) != ap.get_default(key):
+            command += f" --{key} {getattr(args, key)}"
     doc = {"command": command, "device": device_name("cpu"),
            "machine": platform.processor() or platform.machine(), "warp": wp.config.version, "commit": git_commit(),
            "measured": time.strftime("%Y-%m-%d %H:%M:%S"), "rows": rows}

@@ -9,6 +9,7 @@ import warnings
 import numpy as np
 
 from . import device as dev
+from .metrics import relative_rmse
 from .pipeline import PARTS, Frame, Pipeline, SettingsError, resolve_settings
 from .scene import load_scene
 from .scene.load import parse_part
@@ -162,7 +163,7 @@ def remaining_error(images: list, spreads: list, order: float) -> float:
 def measured_error(coarse, fine, order: float, coarse_spread: float = 0.0, fine_spread: float = 0.0) -> float:
     """The relative RMSE of level ``coarse``, measured against the next level ``fine`` (one
     doubling finer) instead of extrapolated: ``remaining_error``'s error model one level on.
-    The step w = fine - coarse is weighed as relative_rmse weighs against ``fine``.
+    The step w = fine - coarse is relative_rmse(coarse, fine).
 
     If the error falls by r per doubling, |w| is the coarse level's error times 1 - r where
     the levels' errors line up (Richardson), and times sqrt(1 + r^2) where they are unrelated.
@@ -173,9 +174,7 @@ def measured_error(coarse, fine, order: float, coarse_spread: float = 0.0, fine_
     The levels' own noise (``*_spread``, as in ``remaining_error``) is taken out of the step
     and the coarse level's put back: the coarse image's error includes its noise."""
     r = 0.5**order
-    w = 1.0 / (fine * fine + 1e-2)
-    d = fine - coarse
-    step = max(float(np.mean(d * d * w)) - coarse_spread**2 - fine_spread**2, 0.0)
+    step = max(relative_rmse(coarse, fine) ** 2 - coarse_spread**2 - fine_spread**2, 0.0)
     return float(np.sqrt(step / ((1.0 - r) * np.sqrt(1.0 + r * r)) + coarse_spread**2))
 
 
@@ -185,6 +184,12 @@ def _check_target(value) -> float:
         raise SettingsError(f"setting target_error={value!r} is out of range (allowed: 0 < target_error < 1; the "
                             "relative RMSE of the image against the technique's converged answer)")
     return float(value)
+
+
+def _with_image(frame: Frame, image: np.ndarray, settings: dict) -> Frame:
+    """``frame`` with its own copy of ``image`` (as float32) and ``settings``."""
+    return Frame(image.astype(np.float32), frame.shape, frame.technique, frame.device, settings, frame.stages,
+                 frame.leaves_out)
 
 
 def _render_to_target(scene, technique: str, device, progress: bool, target: float, settings: dict) -> Frame:
@@ -198,8 +203,6 @@ def _render_to_target(scene, technique: str, device, progress: bool, target: flo
     knob, start, top, tied, order = quality
     if knob in settings:
         raise SettingsError(f"{technique}: give target_error or {knob}, not both (target_error chooses {knob})")
-    from .metrics import relative_rmse
-
     settings = {**getattr(cls, "QUALITY_HOLD", {}), **settings}
     seed = getattr(cls, "QUALITY_SEED", None)
     if seed is not None and seed in settings:
@@ -211,8 +214,7 @@ def _render_to_target(scene, technique: str, device, progress: bool, target: flo
         b = render(scene, technique, device, progress, **{**settings, knob: level, **{k: level for k in tied}, seed: 2})
         ia, ib = a.image.astype(np.float64), b.image.astype(np.float64)
         mean = 0.5 * (ia + ib)
-        frame = Frame(mean.astype(np.float32), a.shape, a.technique, a.device, {**a.settings, seed: "1 and 2, averaged"},
-                      a.stages, a.leaves_out)
+        frame = _with_image(a, mean, {**a.settings, seed: "1 and 2, averaged"})
         return frame, mean, relative_rmse(mean + 0.5 * np.abs(ia - ib), mean)
 
     if knob == "spp":  # Monte Carlo, unbiased: the estimate is the standard error of two runs' mean
@@ -233,23 +235,20 @@ def _render_to_target(scene, technique: str, device, progress: bool, target: flo
         if seed is None:
             r = Renderer(scene, technique, device, progress, **{**settings, knob: start, **{k: start for k in tied}})
             r.technique.one_shot = True
-        level, images, spreads, frames, candidate = start, [], [], [], None
+        level, images, spreads, candidate = start, [], [], None
         while True:
             if r is not None:
                 frame = r.render()
-                frame = Frame(frame.image.copy(), frame.shape, frame.technique, frame.device, frame.settings,
-                              frame.stages, frame.leaves_out)  # the next level may reuse the output buffer
                 images.append(frame.image.astype(np.float64))
                 spreads.append(0.0)
             else:  # seeded (jitter, turned directions): each level is the mean of two seeds
                 frame, mean, spread = two_seeds(level)
                 images.append(mean)
                 spreads.append(spread)
-            frames.append(frame)
             if candidate is not None:  # the previous level met the target by extrapolation: measure it
                 measured = measured_error(images[-2], images[-1], order, spreads[-2], spreads[-1])
                 if measured <= target:
-                    frame, estimate, level = frames[-2], measured, candidate
+                    frame, estimate = candidate, measured
                     break
                 candidate = None
             estimate = float("inf")
@@ -257,8 +256,8 @@ def _render_to_target(scene, technique: str, device, progress: bool, target: flo
                 estimate = float(np.hypot(remaining_error(images, spreads, order), spreads[-1]))
             if 2 * level > top:  # no finer level to measure against: the extrapolation stands
                 break
-            if estimate <= target:
-                candidate = level
+            if estimate <= target:  # a copy: the next level may reuse the output buffer
+                candidate = _with_image(frame, images[-1], frame.settings)
             level *= 2
             if r is not None:
                 r.update(settings={knob: level, **{k: level for k in tied}})
