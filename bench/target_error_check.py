@@ -22,23 +22,60 @@ from warpvol.scene.procedural import random_cloud, random_scene
 
 from .harness import device_name, git_commit
 
-# technique: (target, scenes, the truth's settings, what the truth is)
+# technique: (target, scenes, the truth's settings: every discretisation setting at its limit, what the truth is)
 CASES = {
-    "raymarch": (0.01, "random_scene", [{"steps": 1024, "shadow_steps": 1024}], "1024 steps"),
-    "light_shafts": (0.02, "random_scene", [{"steps": 16384}], "16384 steps"),
-    "particle_glow": (0.01, "random_scene", [{"steps": 4096}], "4096 steps"),
-    "rbf_propagation": (0.05, "random_scene", [{"grid": 256}], "grid 256"),
-    "depth_impostors": (0.02, "random_cloud", [{"slices": 512}], "512 slices"),
-    "illumination_network": (0.03, "random_cloud", [{"directions": 1024, "direction_seed": k, "window_at": 128}
-                                                    for k in (3, 4)], "two turned sets of 1024 directions"),
+    "raymarch": (0.01, "random_scene", [{"steps": 1024, "shadow_steps": 1024, "sky_samples": 1024}],
+                 "1024 steps and shadow steps, 1024 sky directions"),
+    "light_shafts": (0.02, "random_scene", [{"steps": 16384, "block": 1, "shadow_steps": 1024, "shadow_map_res": 2048}],
+                     "16384 steps, block 1, 2048-texel shadow maps"),
+    "particle_glow": (0.01, "random_scene", [{"steps": 4096, "shadow_steps": 1024, "shadow_map_res": 2048}],
+                      "4096 steps, 2048-texel shadow maps"),
+    "rbf_propagation": (0.05, "random_scene", [{"grid": 256, "steps": 1024}], "grid 256, 1024 steps"),
+    "depth_impostors": (0.02, "random_cloud", [{"light_pass": 0, "impostor_res": 128, "light_samples": 256,
+                                                "sky_samples": 256}],
+                        "exact light pass, 128-texel impostors, 256 light samples and sky directions"),
+    "illumination_network": (0.03, "random_cloud", [{"directions": 1024, "direction_seed": k, "window_at": 2048,
+                                                     "light_pass": 0, "light_samples": 256} for k in (3, 4)],
+                             "two turned sets of 1024 directions, window at 2048, exact light pass"),
     "reference": (0.03, "random_scene", [{"spp": 8192, "seed": k} for k in (3, 4)], "2 x 8192 spp"),
 }
+
+#: Scene seeds start here by default: far from the seeds (0-29) the rules were chosen on.
+FIRST = 5000
+
+
+def check_scene(kind: str, seed: int) -> tuple[dict, float]:
+    """A scene for the check and its brightness factor k: ``random_scene`` or ``random_cloud``
+    of ``seed``, every light and the sky scaled by k = 10^U(-3, 3), the point light (if any)
+    put inside the medium or 2.5 units outside it, and half the time a sphere occluder by
+    the medium."""
+    scene = {"random_scene": random_scene, "random_cloud": random_cloud}[kind](seed)
+    rng = np.random.default_rng(seed + 7919)
+    k = float(10 ** rng.uniform(-3.0, 3.0))
+    for light in scene["lights"]:
+        for key in ("intensity", "irradiance"):
+            if key in light:
+                light[key] *= k
+        if light["type"] == "point":
+            d = rng.normal(size=3)
+            light["position"] = (rng.uniform(-0.3, 0.3, 3) if rng.random() < 0.5 else 2.5 * d / np.linalg.norm(d)).tolist()
+    scene["background"] = [k * c for c in scene["background"]]
+    if rng.random() < 0.5:
+        d = rng.normal(size=3)
+        scene["surfaces"] = list(scene.get("surfaces", [])) + [
+            {"type": "sphere", "center": (0.9 * d / np.linalg.norm(d)).tolist(), "radius": float(rng.uniform(0.15, 0.35)),
+             "diffuse": 0.5}]
+    return scene, k
+
+
+def settings_default(technique: str, name: str):
+    return wv.technique_class(technique).SETTINGS[name].default
 
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenes", type=int, default=10)
-    ap.add_argument("--first", type=int, default=0, help="the first scene's seed (20: scenes no rule was chosen on)")
+    ap.add_argument("--first", type=int, default=FIRST, help="the first scene's seed")
     ap.add_argument("--out", default="results/target-error")
     ap.add_argument("--only", nargs="*", default=None)
     args = ap.parse_args(argv)
@@ -50,9 +87,8 @@ def main(argv=None) -> None:
     for technique, (target, kind, fine, truth_is) in CASES.items():
         if args.only is not None and technique not in args.only:
             continue
-        make = {"random_scene": random_scene, "random_cloud": random_cloud}[kind]
         for seed in range(args.first, args.first + args.scenes):
-            scene = make(seed)
+            scene, k = check_scene(kind, seed)
             t = time.perf_counter()
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", RuntimeWarning)
@@ -65,10 +101,14 @@ def main(argv=None) -> None:
                 truth_image = np.mean([wv.render(scene, technique, device="cpu", **f).image.astype(np.float64)
                                        for f in fine], axis=0)
             truth = wv.relative_rmse(frame.image, truth_image)
-            knob = wv.technique_class(technique).QUALITY[0]  # what target_error raised
-            rows.append({"technique": technique, "scene": f"{kind}({seed})", "target": target,
-                         "estimate": frame.error_estimate, "truth": truth, "truth_is": truth_is,
-                         "knob": {knob: frame.settings[knob]}, "seconds": seconds})
+            knob = wv.technique_class(technique).QUALITY.knob  # what target_error raised
+            moved = {b.setting: frame.settings[b.setting] for b in wv.technique_class(technique).QUALITY.biases
+                     if b.setting in frame.settings and frame.settings[b.setting] != settings_default(technique, b.setting)}
+            rows.append({"technique": technique, "scene": f"check_scene({kind!r}, {seed})", "brightness": k,
+                         "mean_radiance": float(np.mean(truth_image)), "target": target,
+                         "estimate": frame.error_estimate, "biases": frame.bias_estimates, "truth": truth,
+                         "truth_is": truth_is, "knob": {knob: frame.settings[knob]}, "moved": moved,
+                         "seconds": seconds})
             print(f"{technique} {kind}({seed}): estimate {frame.error_estimate:.3g} truth {truth:.3g} "
                   f"{rows[-1]['knob']} {seconds:.1f} s", flush=True)
     command = "PYTHONPATH=. .venv/bin/python -m bench.target_error_check"

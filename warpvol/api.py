@@ -9,7 +9,7 @@ import warnings
 import numpy as np
 
 from . import device as dev
-from .metrics import relative_rmse
+from .metrics import error_scale, relative_rmse
 from .pipeline import PARTS, Frame, Pipeline, SettingsError, resolve_settings
 from .scene import load_scene
 from .scene.load import parse_part
@@ -145,14 +145,16 @@ def remaining_error(images: list, spreads: list, order: float) -> float:
     (Richardson), r |v| / sqrt(1 + r^2) when they are unrelated (where Richardson alone
     over-estimates up to 4x). ``spreads``: each level's own relative standard error (0 for a
     deterministic technique); that noise is taken out of |u|^2, |v|^2 and u.v. r is kept in
-    [2^-(RATE_FLOOR order), 0.95]. Weights are relative_rmse's, against c."""
+    [2^-(RATE_FLOOR order), 0.95]. Norms are relative_rmse's: over c's mean."""
     a, b, c = images[-3:]
     s0, s1, s2 = (x * x for x in spreads[-3:])
-    w = 1.0 / (c * c + 1e-2)
-    u, v = b - a, c - b
-    uu = max(float(np.mean(u * u * w)) - s0 - s1, 0.0)
-    vv = max(float(np.mean(v * v * w)) - s1 - s2, 0.0)
-    uv = float(np.mean(u * v * w)) + s1
+    scale = error_scale(c)
+    if scale <= 0.0:
+        return 0.0 if not (np.any(a) or np.any(b)) else float("inf")
+    u, v = (b - a) / scale, (c - b) / scale
+    uu = max(float(np.mean(u * u)) - s0 - s1, 0.0)
+    vv = max(float(np.mean(v * v)) - s1 - s2, 0.0)
+    uv = float(np.mean(u * v)) + s1
     if uu <= 0.0:
         return float(np.sqrt(vv))
     r = min(max(np.sqrt(vv / uu), 0.5 ** (RATE_FLOOR * order)), 0.95)
@@ -178,6 +180,15 @@ def measured_error(coarse, fine, order: float, coarse_spread: float = 0.0, fine_
     return float(np.sqrt(step / ((1.0 - r) * np.sqrt(1.0 + r * r)) + coarse_spread**2))
 
 
+def bias_error(image, limit_image, bias, image_spread: float = 0.0, limit_spread: float = 0.0) -> float:
+    """The relative RMSE a ``Bias`` setting leaves in ``image``, measured against a render with
+    the setting at its limit (``limit_image``, else the same): the difference itself where the
+    limit is exact, else the difference over 1 - factor^-order (the part a render at factor x
+    the value still misses, as an error of that order). Both images' noise is taken out."""
+    d2 = max(relative_rmse(image, limit_image) ** 2 - image_spread**2 - limit_spread**2, 0.0)
+    return float(np.sqrt(d2) if bias.exact is not None else np.sqrt(d2) / (1.0 - float(bias.factor) ** -bias.order))
+
+
 def _check_target(value) -> float:
     ok = isinstance(value, (int, float)) and not isinstance(value, bool) and 0.0 < float(value) < 1.0
     if not ok:
@@ -192,80 +203,160 @@ def _with_image(frame: Frame, image: np.ndarray, settings: dict) -> Frame:
                  frame.leaves_out)
 
 
+#: Rounds of ladder-then-biases ``_render_to_target`` takes at most (each round moves one bias
+#: setting to its limit or tightens the ladder's share of the target).
+MAX_ROUNDS = 8
+
+
 def _render_to_target(scene, technique: str, device, progress: bool, target: float, settings: dict) -> Frame:
-    """Raise the technique's quality knob (``Technique.QUALITY``) by doubling until the error
-    estimate is at most ``target`` (see ``render``)."""
+    """Render to ``target`` against the technique's converged answer: the ladder of its
+    ``Quality`` knob, then each ``Bias`` setting's bias measured at the level found (see
+    ``render``)."""
     cls = technique_class(technique)
-    quality = getattr(cls, "QUALITY", None)
-    if quality is None:
+    q = getattr(cls, "QUALITY", None)
+    if q is None:
         raise SettingsError(f"{technique}: target_error is not supported yet (supported: "
                             f"{', '.join(n for n in technique_names() if getattr(technique_class(n), 'QUALITY', None))})")
-    knob, start, top, tied, order = quality
-    if knob in settings:
-        raise SettingsError(f"{technique}: give target_error or {knob}, not both (target_error chooses {knob})")
-    settings = {**getattr(cls, "QUALITY_HOLD", {}), **settings}
+    for key in (q.knob, *(q.tied or {})):
+        if key in settings:
+            raise SettingsError(f"{technique}: give target_error or {key}, not both (target_error chooses {key})")
     seed = getattr(cls, "QUALITY_SEED", None)
     if seed is not None and seed in settings:
         raise SettingsError(f"{technique}: give target_error or {seed}, not both (target_error draws two)")
+    hold = getattr(cls, "QUALITY_HOLD", {})
+    for key, value in hold.items():
+        if key in settings and settings[key] != value and not any(b.setting == key for b in q.biases):
+            raise SettingsError(f"{technique}: give target_error or {key}, not both (target_error holds {key} = {value})")
+    scene = load_scene(scene)
+    base = {**hold, **settings}
+    defaults = {k: s.default for k, s in cls.SETTINGS.items()}
+    if q.knob == "spp":  # unbiased Monte Carlo: its noise is the whole error
+        return _render_spp(scene, technique, device, progress, target, base, q, seed)
 
-    def two_seeds(level):
-        """The mean of two independent answers at ``level`` and its relative standard error."""
-        a = render(scene, technique, device, progress, **{**settings, knob: level, **{k: level for k in tied}, seed: 1})
-        b = render(scene, technique, device, progress, **{**settings, knob: level, **{k: level for k in tied}, seed: 2})
-        ia, ib = a.image.astype(np.float64), b.image.astype(np.float64)
-        mean = 0.5 * (ia + ib)
-        frame = _with_image(a, mean, {**a.settings, seed: "1 and 2, averaged"})
-        return frame, mean, relative_rmse(mean + 0.5 * np.abs(ia - ib), mean)
+    sky = any(c > 0.0 for c in scene.background) and bool(scene.media)
+    held: dict = {}  # bias settings moved to their limit
+    aim = target  # the ladder's share of the target
+    first = q.start
+    frame = None
+    for _ in range(MAX_ROUNDS):
+        current = {**base, **held}
+        frame, estimate, level, spread = _ladder(scene, technique, device, progress, aim, current, q, seed, first)
+        biases, limits = {}, {}
+        for b in q.biases:
+            value = current.get(b.setting, defaults[b.setting])
+            if b.when == "sky" and not sky:
+                continue
+            hi = cls.SETTINGS[b.setting].hi
+            limit = b.exact if b.exact is not None else min(value * b.factor, hi)
+            if limit == value or (b.exact is None and value == 0):  # at its limit, or off (0: left out)
+                continue
+            extra = {**current, b.setting: type(value)(limit)}
+            img, s = _level_image(scene, technique, device, progress, extra, q, seed, level)
+            biases[b.setting] = bias_error(frame.image, img, b, spread, s)
+            limits[b.setting] = type(value)(limit)
+        total = float(np.sqrt(estimate**2 + sum(e * e for e in biases.values())))
+        frame.bias_estimates = dict(biases)
+        if total <= target:
+            frame.error_estimate = total
+            return frame
+        movable = {k: e for k, e in biases.items() if k not in settings}
+        worst = max(movable, key=movable.get) if movable else None
+        rest = target**2 - sum(e * e for e in biases.values())
+        if worst is not None and (movable[worst] > 0.5 * target or rest < (0.25 * target) ** 2):
+            held[worst] = limits[worst]  # this setting's bias is the larger part: take it to its limit
+            first = max(q.start, level // 4)
+            continue
+        if rest <= 0.0 or 2 * level > q.top:
+            break
+        aim = min(aim, float(np.sqrt(rest)))  # the biases are small: the ladder aims lower
+        first = max(q.start, level // 4)
+    frame.error_estimate = total
+    warnings.warn(f"{technique}: error estimate {total:.3g} above target_error {target:.3g} at {frame.settings} "
+                  f"(biases measured: {', '.join(f'{k} {e:.3g}' for k, e in biases.items()) or 'none'})",
+                  RuntimeWarning, stacklevel=3)
+    return frame
 
-    if knob == "spp":  # Monte Carlo, unbiased: the estimate is the standard error of two runs' mean
-        level, limit = max(1, start // 2), top // 2  # samples of each run
-        # two runs give one difference a pixel, which runs low where a few paths carry much of
-        # a pixel's variance (measured: the truth up to 1.16x the estimate on random scenes), so
-        # the samples are raised until the estimate is under SPP_MARGIN of the target
-        aim = SPP_MARGIN * target
-        while True:
-            frame, _, estimate = two_seeds(level)
-            if estimate <= aim or level >= limit:
-                break
-            # the error falls as spp^-1/2: jump to the count the target needs
-            level = min(limit, int(level * max(2.0, (estimate / aim) ** (1.0 / order))))
-        frame.settings[knob] = level = 2 * level
-    else:
-        r = None
-        if seed is None:
-            r = Renderer(scene, technique, device, progress, **{**settings, knob: start, **{k: start for k in tied}})
-            r.technique.one_shot = True
-        level, images, spreads, candidate = start, [], [], None
-        while True:
-            if r is not None:
-                frame = r.render()
-                images.append(frame.image.astype(np.float64))
-                spreads.append(0.0)
-            else:  # seeded (jitter, turned directions): each level is the mean of two seeds
-                frame, mean, spread = two_seeds(level)
-                images.append(mean)
-                spreads.append(spread)
-            if candidate is not None:  # the previous level met the target by extrapolation: measure it
-                measured = measured_error(images[-2], images[-1], order, spreads[-2], spreads[-1])
-                if measured <= target:
-                    frame, estimate = candidate, measured
-                    break
-                candidate = None
-            estimate = float("inf")
-            if len(images) >= 3:
-                estimate = float(np.hypot(remaining_error(images, spreads, order), spreads[-1]))
-            if 2 * level > top:  # no finer level to measure against: the extrapolation stands
-                break
-            if estimate <= target:  # a copy: the next level may reuse the output buffer
-                candidate = _with_image(frame, images[-1], frame.settings)
-            level *= 2
-            if r is not None:
-                r.update(settings={knob: level, **{k: level for k in tied}})
+
+def _two_seeds(scene, technique, device, progress, settings: dict, seed: str):
+    """The mean of two independent answers (``seed`` 1 and 2) at ``settings`` and its relative
+    standard error: (frame, mean image, spread)."""
+    a = render(scene, technique, device, progress, **{**settings, seed: 1})
+    b = render(scene, technique, device, progress, **{**settings, seed: 2})
+    ia, ib = a.image.astype(np.float64), b.image.astype(np.float64)
+    mean = 0.5 * (ia + ib)
+    frame = _with_image(a, mean, {**a.settings, seed: "1 and 2, averaged"})
+    return frame, mean, relative_rmse(mean + 0.5 * np.abs(ia - ib), mean)
+
+
+def _level_image(scene, technique, device, progress, settings: dict, q, seed, level: int):
+    """One level's image (the mean of two seeds where the technique is seeded) and its spread."""
+    settings = {**settings, **q.level_settings(level)}
+    if seed is None:
+        return render(scene, technique, device, progress, **settings).image.astype(np.float64), 0.0
+    _, mean, spread = _two_seeds(scene, technique, device, progress, settings, seed)
+    return mean, spread
+
+
+def _render_spp(scene, technique, device, progress, target: float, settings: dict, q, seed: str) -> Frame:
+    """The reference: two runs of independent samples, raised until the standard error of
+    their mean is under SPP_MARGIN of the target."""
+    level, limit = max(1, q.start // 2), q.top // 2  # samples of each run
+    # two runs give one difference a pixel, which runs low where a few paths carry much of
+    # a pixel's variance (measured: the truth up to 1.16x the estimate on random scenes), so
+    # the samples are raised until the estimate is under SPP_MARGIN of the target
+    aim = SPP_MARGIN * target
+    while True:
+        frame, _, estimate = _two_seeds(scene, technique, device, progress, {**settings, q.knob: level}, seed)
+        if estimate <= aim or level >= limit:
+            break
+        # the error falls as spp^-1/2: jump to the count the target needs
+        level = min(limit, int(level * max(2.0, (estimate / aim) ** (1.0 / q.order))))
+    frame.settings[q.knob] = 2 * level
     frame.error_estimate = estimate
     if estimate > target:
-        warnings.warn(f"{technique}: error estimate {estimate:.3g} above target_error {target:.3g} at {knob} = {level} "
-                      f"(the most it may use)", RuntimeWarning, stacklevel=3)
+        warnings.warn(f"{technique}: error estimate {estimate:.3g} above target_error {target:.3g} at {q.knob} = "
+                      f"{2 * level} (the most it may use)", RuntimeWarning, stacklevel=4)
     return frame
+
+
+def _ladder(scene, technique, device, progress, target: float, settings: dict, q, seed, first: int):
+    """Double the knob from ``first`` until the error is at most ``target``: at the first level
+    whose three-level extrapolation (``remaining_error``) meets it, one more level is rendered
+    and the level's error measured against it (``measured_error``). Returns (frame, estimate,
+    level, the frame's own spread)."""
+    r = None
+    if seed is None:
+        r = Renderer(scene, technique, device, progress, **{**settings, **q.level_settings(first)})
+        r.technique.one_shot = True
+    level, images, spreads, candidate = first, [], [], None
+    while True:
+        if r is not None:
+            frame = r.render()
+            images.append(frame.image.astype(np.float64))
+            spreads.append(0.0)
+        else:  # seeded (jitter, turned directions): each level is the mean of two seeds
+            frame, mean, spread = _two_seeds(scene, technique, device, progress,
+                                             {**settings, **q.level_settings(level)}, seed)
+            images.append(mean)
+            spreads.append(spread)
+        if candidate is not None:  # the previous level met the target by extrapolation: measure it
+            measured = measured_error(images[-2], images[-1], q.order, spreads[-2], spreads[-1])
+            if measured <= target:
+                return candidate, measured, level // 2, spreads[-2]
+            candidate = None
+        estimate = float("inf")
+        if len(images) >= 3:
+            estimate = float(np.hypot(remaining_error(images, spreads, q.order), spreads[-1]))
+        if 2 * level > q.top:  # no finer level to measure against: the extrapolation stands
+            frame = _with_image(frame, images[-1], frame.settings)
+            if not np.isfinite(estimate) and len(images) >= 2:  # the coarser level's measured error, one doubling on
+                estimate = 0.5**q.order * measured_error(images[-2], images[-1], q.order, spreads[-2], spreads[-1])
+            return frame, estimate, level, spreads[-1]
+        if estimate <= target:  # a copy: the next level may reuse the output buffer
+            candidate = _with_image(frame, images[-1], frame.settings)
+        level *= 2
+        if r is not None:
+            r.update(settings=q.level_settings(level))
 
 
 def _render_auto(scene, device, progress: bool, settings: dict) -> Frame:

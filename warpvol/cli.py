@@ -110,8 +110,11 @@ def cmd_render(args) -> int:
     wall = time.perf_counter() - t0
     chosen = ""
     if frame.error_estimate is not None:
-        knob = technique_class(frame.technique).QUALITY[0]
-        chosen = f", {knob} = {frame.settings[knob]}, estimated error {frame.error_estimate:.3g}"
+        q = technique_class(frame.technique).QUALITY
+        spec = technique_class(frame.technique).SETTINGS
+        moved = [b.setting for b in q.biases if frame.settings.get(b.setting, spec[b.setting].default) != spec[b.setting].default]
+        chosen = ", ".join(f"{k} = {frame.settings[k]}" for k in [q.knob, *moved])
+        chosen = f", {chosen}, estimated error {frame.error_estimate:.3g}"
     name = f"auto -> {frame.technique}" if args.technique == "auto" else frame.technique
     print(f"{scene.name}: {name} on {frame.device}, {scene.camera.width}x{scene.camera.height}{chosen}, "
           f"{wall:.2f} s -> {', '.join(args.out)}")

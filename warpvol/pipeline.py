@@ -62,6 +62,43 @@ def resolve_settings(technique: str, spec: dict[str, Setting], given: dict, base
     return out
 
 
+@dataclass(frozen=True)
+class Bias:
+    """A discretisation setting that ``target_error`` does not raise with the ladder but whose
+    bias it measures at the level the ladder found: against ``exact`` (the value at which the
+    setting leaves no bias, e.g. light_shafts' block = 1), or, where the limit is infinite,
+    against ``factor`` times the value, the difference scaled to the whole bias as an error
+    of order ``order`` (|x(v) - x(f v)| / (1 - f^-order)). ``when``: the scene part that must
+    be present for the setting to matter (``"sky"``: a non-black background), or None."""
+
+    setting: str
+    exact: object = None
+    factor: int = 4
+    order: float = 1.0
+    when: str | None = None
+
+
+@dataclass(frozen=True)
+class Quality:
+    """What ``render(target_error=...)`` does with a technique's discretisation settings.
+
+    ``knob`` doubles from ``start`` up to ``top`` (the ladder), its error falling as
+    knob^-``order``; each setting in ``tied`` rises with it, at ``factor x knob``; ``biases``
+    are the other settings that leave a bias, measured at the level found (``Bias``). Together
+    they are every setting whose limit is the technique's converged answer."""
+
+    knob: str
+    start: int
+    top: int
+    order: float
+    tied: dict = None  # setting: factor
+    biases: tuple = ()
+
+    def level_settings(self, level: int) -> dict:
+        """The knob and its tied settings at ``level``."""
+        return {self.knob: level, **{k: max(1, int(round(f * level))) for k, f in (self.tied or {}).items()}}
+
+
 class Stage(NamedTuple):
     """One pass of a technique.
 
@@ -131,9 +168,9 @@ class Technique:
     #: True: the technique gathers the sky's light whatever its settings (e.g. by following paths).
     GATHERS_SKY: bool = False
 
-    #: (knob, first value, largest value, settings tied to it, nominal order p: error ~ knob^-p):
-    #: what ``render(target_error=...)`` doubles; None: target_error is not supported.
-    QUALITY: tuple | None = None
+    #: What ``render(target_error=...)`` raises and measures (``Quality``); None: target_error is
+    #: not supported.
+    QUALITY: Quality | None = None
 
     #: A seed setting whose values give independent answers of the same quality (Monte Carlo
     #: samples, turned direction sets): ``target_error`` then estimates the error from the spread
@@ -168,6 +205,7 @@ class Frame:
                  stages: dict[str, StageRun], leaves_out: list[str] | None = None):
         self.leaves_out = list(leaves_out or [])  # what the technique's model leaves out of the physics
         self.error_estimate: float | None = None  # render(target_error=...): the image's estimated error
+        self.bias_estimates: dict[str, float] = {}  # render(target_error=...): each Bias setting's measured part
         self.choice: str | None = None  # render(technique="auto"): what was chosen and why
         self._output = output
         self._image = None

@@ -65,7 +65,7 @@ from ..physics.constants import INF, PI, RAY_EPS
 from ..physics.lights import Light, light_incident
 from ..physics.phase import Phase, phase_eval, phase_struct, phase_toward
 from ..physics.transmittance import transmittance_rgb
-from ..pipeline import Setting, Stage, Technique
+from ..pipeline import Bias, Quality, Setting, Stage, Technique
 from ..scene.procedural import split_blocks
 from ..upload import SceneUploads, check_particle_scene, particle_cloud, pinhole, sky_lights
 
@@ -404,7 +404,9 @@ class DepthImpostors(Technique):
 
     NAME = NAME
     SETTINGS = SETTINGS
-    QUALITY = ("slices", 2, 512, (), 1)
+    QUALITY = Quality("slices", 2, 512, 1, biases=(
+        Bias("light_pass", exact=0), Bias("impostor_res", factor=4, order=1),
+        Bias("light_samples", factor=4, order=1), Bias("sky_samples", factor=4, order=1, when="sky")))
     LEAVES_OUT = ("multiple scattering",)
 
     def __init__(self, scene, device, settings, progress=False):

@@ -96,7 +96,7 @@ from ..media.volume import Media, homogeneous_optical_depth, in_scatter_at, sigm
 from ..physics.constants import INF, RAY_EPS
 from ..physics.lights import step_mean_irradiance
 from ..physics.transmittance import transmittance_rgb
-from ..pipeline import Setting, Stage, Technique
+from ..pipeline import Bias, Quality, Setting, Stage, Technique
 from ..shading import light_arriving, marched_optical_depth, surface_through_maps
 from ..upload import SceneUploads, pinhole, scene_bounds, shadow_map_structs
 
@@ -358,7 +358,8 @@ class LightShafts(Technique):
 
     NAME = NAME
     SETTINGS = SETTINGS
-    QUALITY = ("steps", 16, 4096, (), 1)
+    QUALITY = Quality("steps", 16, 4096, 1, tied={"shadow_steps": 0.5},
+                      biases=(Bias("block", exact=1), Bias("shadow_map_res", factor=4, order=1)))
     LEAVES_OUT = ("multiple scattering",)
 
     def __init__(self, scene, device, settings, progress=False):

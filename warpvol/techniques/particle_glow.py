@@ -69,7 +69,7 @@ from ..physics.airlight import g_table, surface_radiance
 from ..physics.constants import INF, PI
 from ..physics.lights import DIRECTIONAL, SPOT, ball_mean_inverse_square, spot_falloff
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
-from ..pipeline import Setting, Stage, Technique
+from ..pipeline import Bias, Quality, Setting, Stage, Technique
 from ..shading import light_arriving, surface_through_maps
 from ..upload import SceneUploads, pinhole, shadowed_lights
 
@@ -259,7 +259,8 @@ class ParticleGlow(Technique):
 
     NAME = NAME
     SETTINGS = SETTINGS
-    QUALITY = ("steps", 8, 8192, (), 2)
+    QUALITY = Quality("steps", 8, 8192, 2, tied={"shadow_steps": 0.25},
+                      biases=(Bias("shadow_map_res", factor=4, order=1),))
     LEAVES_OUT = ("multiple scattering (the glow imitates some of it)",)
 
     def __init__(self, scene, device, settings, progress=False):

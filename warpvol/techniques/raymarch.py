@@ -39,7 +39,7 @@ from ..physics.brdf import brdf_eval
 from ..physics.constants import INF, PI, RAY_EPS
 from ..physics.lights import Light, light_incident, step_mean_irradiance
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
-from ..pipeline import Setting, SettingsError, Stage, Technique
+from ..pipeline import Bias, Quality, Setting, SettingsError, Stage, Technique
 from ..shading import light_transmittance, marched_optical_depth, surface_direct
 from ..upload import SceneUploads, light_structs, lights_array, pinhole, sky_light_structs
 
@@ -194,7 +194,8 @@ class Raymarch(Technique):
 
     NAME = NAME
     SETTINGS = SETTINGS
-    QUALITY = ("steps", 8, 1024, ("shadow_steps",), 2)
+    QUALITY = Quality("steps", 8, 1024, 2, tied={"shadow_steps": 1},
+                      biases=(Bias("sky_samples", factor=4, order=1, when="sky"), Bias("shadow_grid", exact=0)))
     LEAVES_OUT = ("multiple scattering",)
 
     def __init__(self, scene, device, settings, progress=False):

@@ -53,7 +53,7 @@ from ..physics.constants import INF, PI, RAY_EPS, STREAM, TWO_PI
 from ..physics.lights import DIRECTIONAL, Light, light_incident
 from ..physics.phase import orthonormal_basis, phase_eval, phase_sample
 from ..physics.transmittance import transmittance_rgb
-from ..pipeline import Setting, Stage, Technique
+from ..pipeline import Quality, Setting, Stage, Technique
 from ..shading import light_transmittance, surface_direct
 from ..upload import SceneUploads, pinhole
 
@@ -357,7 +357,7 @@ class Reference(Technique):
 
     NAME = NAME
     SETTINGS = SETTINGS
-    QUALITY = ("spp", 16, 1 << 20, (), 0.5)
+    QUALITY = Quality("spp", 16, 1 << 20, 0.5)
     QUALITY_SEED = "seed"  # the error estimate: two runs of independent samples
     LEAVES_OUT = ()
     GATHERS_SKY = True
