@@ -140,16 +140,15 @@ def test_light_inside_a_dense_rbf_and_a_single_cell_grid():
 def test_a_medium_over_a_plane_agrees_with_raymarch(name):
     """A medium over a floor plane under the sun: the volume spans the medium (it used to span
     the plane alone: zero thickness, 1408 of 3072 pixels NaN at 64x48, the haze missing).
-    Against raymarch (256 steps, 128 shadow steps) the relative RMSE is the grid's error:
-    measured at 64x48, 0.083 / 0.055 / 0.038 (sunlit-haze) and 0.080 / 0.052 / 0.032
-    (smoke-grid) at grid 10 / 20 / 40, first order; at 32x24 and grid 10 about the same
-    (see the assertion's message). 0.12 is 1.5x that; the old volume gave 0.59 to 1.0."""
+    Against raymarch (256 steps, 128 shadow steps) the relative RMSE (over the mean) is the
+    grid's error: measured at 32x24, 0.100 / 0.061 / 0.038 (sunlit-haze) and 0.124 / 0.077 /
+    0.045 (smoke-grid) at grid 10 / 20 / 40, first order. 0.19 is 1.5x the larger at grid 10."""
     scene = wv.load_scene(name, ["camera.width=32", "camera.height=24"])
     img = wv.render(scene, technique="rbf_propagation", grid=10).image
     assert np.isfinite(img).all()
     ref = wv.render(scene, technique="raymarch", steps=256, shadow_steps=128, sky_samples=0).image  # both without the sky
     err = relative_rmse(img, ref)
-    assert err < 0.12, err
+    assert err < 0.19, err
     assert abs(img.mean() / ref.mean() - 1) < 0.05, img.mean() / ref.mean()
 
 
