@@ -90,7 +90,7 @@ def mitsuba_ratio():
     rows = []
     for variant in ("llvm_ad_rgb", "scalar_rgb"):
         if variant.startswith("llvm") and not os.environ.get("DRJIT_LIBLLVM_PATH"):
-            # with the system's LLVM 15 this variant aborts the process (DESIGN.md)
+            # with the system's LLVM 15 this variant aborts the process
             rows.append({"variant": variant, "error": "skipped: set DRJIT_LIBLLVM_PATH to an LLVM 19 library"})
             continue
         try:

@@ -207,7 +207,7 @@ def digest(obj) -> str:
 #: Bumped when the reference's estimator changes, so cached images from an older one are not
 #: reused: 2 = free flight by superposition, independent forked random streams and Russian
 #: roulette capped at 0.995 (same means, other noise).
-REFERENCE_VERSION = 3  # 3: single scattering includes the sky's light
+REFERENCE_VERSION = 4  # 3: single scattering includes the sky's light; 4: the floor in relative_rmse's measure
 
 
 def reference_image(scene, device: str, **settings) -> tuple[np.ndarray, float]:
@@ -226,7 +226,7 @@ def reference_image(scene, device: str, **settings) -> tuple[np.ndarray, float]:
     b = wv.render(scene, technique="reference", device=device, progress=True, seed=2, **settings).image
     image = 0.5 * (a.astype(np.float64) + b)
     se = np.abs(a.astype(np.float64) - b) / 2.0
-    floor = float(np.sqrt(np.mean(se * se / (image * image + 1e-2))))
+    floor = wv.relative_rmse(image + se, image)  # in the measure the floor is taken out of
     write_atomic(path, lambda fh: np.savez_compressed(fh, image=image.astype(np.float32), floor=floor))
     return image.astype(np.float32), floor
 

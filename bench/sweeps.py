@@ -1,6 +1,5 @@
-"""Named sweeps: one per table of the papers (bench/paper_tables.toml, a copy of
-../shared/paper_tables.toml), accuracy sweeps (error against the reference vs time) and the
-pipeline's own overhead. A paper's sweep becomes runnable when its technique lands.
+"""Named sweeps: one per table of the papers (bench/paper_tables.toml), accuracy sweeps (error
+against the reference vs time) and the pipeline's own overhead. A paper's sweep becomes runnable when its technique lands.
 """
 
 from __future__ import annotations

@@ -181,7 +181,7 @@ def _toml_value(v) -> str:
 
 
 def to_toml(scene: dict) -> str:
-    """A scene dict as TOML (tables and arrays of tables as in DESIGN.md; grids need a file)."""
+    """A scene dict as TOML (tables and arrays of tables as in a scene file; grids need a file)."""
     lines = [f"{k} = {_toml_value(v)}" for k, v in scene.items() if not isinstance(v, (dict, list)) or k == "background"]
     for key, value in scene.items():
         if isinstance(value, dict):

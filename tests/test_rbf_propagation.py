@@ -57,7 +57,7 @@ def test_injection_is_the_rbf_sum_at_cell_centres(device, centers, radius):
 
 
 def test_zero_rbfs_is_refused():
-    """DESIGN.md: empty media are an error, named before any kernel runs."""
+    """Empty media are an error, named before any kernel runs."""
     with pytest.raises(SceneError, match=r"media\[0\]\.centers: has no centres"):
         renderer(box_scene([rbf(np.zeros((0, 3)))], [POINT]))
 

@@ -10,7 +10,7 @@ import numpy as np
 
 from . import device as dev
 from .metrics import error_scale, relative_rmse
-from .pipeline import PARTS, Frame, Pipeline, SettingsError, resolve_settings
+from .pipeline import PARTS, Frame, Pipeline, SettingsError, has_sky, resolve_settings
 from .scene import load_scene
 from .scene.load import parse_part
 
@@ -223,21 +223,16 @@ def _render_to_target(scene, technique: str, device, progress: bool, target: flo
     seed = getattr(cls, "QUALITY_SEED", None)
     if seed is not None and seed in settings:
         raise SettingsError(f"{technique}: give target_error or {seed}, not both (target_error draws two)")
-    hold = getattr(cls, "QUALITY_HOLD", {})
-    for key, value in hold.items():
-        if key in settings and settings[key] != value and not any(b.setting == key for b in q.biases):
-            raise SettingsError(f"{technique}: give target_error or {key}, not both (target_error holds {key} = {value})")
     scene = load_scene(scene)
-    base = {**hold, **settings}
+    base = {**getattr(cls, "QUALITY_HOLD", {}), **settings}
     defaults = {k: s.default for k, s in cls.SETTINGS.items()}
     if q.knob == "spp":  # unbiased Monte Carlo: its noise is the whole error
         return _render_spp(scene, technique, device, progress, target, base, q, seed)
 
-    sky = any(c > 0.0 for c in scene.background) and bool(scene.media)
+    sky = has_sky(scene)
     held: dict = {}  # bias settings moved to their limit
     aim = target  # the ladder's share of the target
     first = q.start
-    frame = None
     for _ in range(MAX_ROUNDS):
         current = {**base, **held}
         frame, estimate, level, spread = _ladder(scene, technique, device, progress, aim, current, q, seed, first)
@@ -256,6 +251,7 @@ def _render_to_target(scene, technique: str, device, progress: bool, target: flo
             limits[b.setting] = type(value)(limit)
         total = float(np.sqrt(estimate**2 + sum(e * e for e in biases.values())))
         frame.bias_estimates = dict(biases)
+        frame.moved_to_limit = dict(held)
         if total <= target:
             frame.error_estimate = total
             return frame

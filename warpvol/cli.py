@@ -110,10 +110,8 @@ def cmd_render(args) -> int:
     wall = time.perf_counter() - t0
     chosen = ""
     if frame.error_estimate is not None:
-        q = technique_class(frame.technique).QUALITY
-        spec = technique_class(frame.technique).SETTINGS
-        moved = [b.setting for b in q.biases if frame.settings.get(b.setting, spec[b.setting].default) != spec[b.setting].default]
-        chosen = ", ".join(f"{k} = {frame.settings[k]}" for k in [q.knob, *moved])
+        knob = technique_class(frame.technique).QUALITY.knob
+        chosen = ", ".join(f"{k} = {frame.settings[k]}" for k in [knob, *frame.moved_to_limit])
         chosen = f", {chosen}, estimated error {frame.error_estimate:.3g}"
     name = f"auto -> {frame.technique}" if args.technique == "auto" else frame.technique
     print(f"{scene.name}: {name} on {frame.device}, {scene.camera.width}x{scene.camera.height}{chosen}, "

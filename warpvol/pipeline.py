@@ -99,6 +99,11 @@ class Quality:
         return {self.knob: level, **{k: max(1, int(round(f * level))) for k, f in (self.tied or {}).items()}}
 
 
+def has_sky(scene) -> bool:
+    """Whether the scene's background lights its media: a non-black sky and some medium."""
+    return any(c > 0.0 for c in scene.background) and bool(scene.media)
+
+
 class Stage(NamedTuple):
     """One pass of a technique.
 
@@ -160,8 +165,7 @@ class Technique:
         """``LEAVES_OUT``, and the sky's light where the scene has a sky the technique does not
         gather (``sky_samples`` = 0, or no such setting)."""
         out = list(self.LEAVES_OUT)
-        sky = any(c > 0.0 for c in self.scene.background) and bool(self.scene.media)
-        if sky and self.settings.get("sky_samples", 0) == 0 and self.GATHERS_SKY is not True:
+        if has_sky(self.scene) and self.settings.get("sky_samples", 0) == 0 and self.GATHERS_SKY is not True:
             out.append("the sky's light (the background) scattered in the media or reflected by surfaces")
         return out
 
@@ -206,6 +210,7 @@ class Frame:
         self.leaves_out = list(leaves_out or [])  # what the technique's model leaves out of the physics
         self.error_estimate: float | None = None  # render(target_error=...): the image's estimated error
         self.bias_estimates: dict[str, float] = {}  # render(target_error=...): each Bias setting's measured part
+        self.moved_to_limit: dict = {}  # render(target_error=...): the Bias settings it took to their limits
         self.choice: str | None = None  # render(technique="auto"): what was chosen and why
         self._output = output
         self._image = None

@@ -1,6 +1,6 @@
 """Phase functions: evaluation and importance sampling, each normalised over the sphere.
 
-Convention (DESIGN.md): ``cos_theta`` is the cosine of the angle between the direction
+Convention: ``cos_theta`` is the cosine of the angle between the direction
 light travels before and after scattering, so g > 0 scatters forward. In a path tracer
 that follows a ray ``d`` backwards and continues along ``d'``, cos_theta = dot(d, d').
 

@@ -61,7 +61,7 @@ class _Table:
         self.used.add(name)
         if name not in self.data:
             if default is _REQUIRED:
-                self.fail(self.key(name), "missing", allowed or "see DESIGN.md")
+                self.fail(self.key(name), "missing", allowed or "a value: this key is required")
             return default
         return self.data[name]
 
@@ -520,7 +520,7 @@ def load_scene(scene, overrides: list[str] | None = None) -> Scene:
         with open(path, "rb") as fh:
             data = tomllib.load(fh)
     except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"{path}: not valid TOML: {exc} (allowed: TOML as in DESIGN.md)") from None
+        raise SceneError(f"{path}: not valid TOML: {exc} (allowed: a TOML scene file: a [camera] table and [[lights]], [[media]], [[surfaces]] arrays of tables)") from None
     except UnicodeDecodeError as exc:
         raise SceneError(f"{path}: not a text file: byte {exc.start} is not UTF-8 "
                          "(allowed: a UTF-8 TOML scene file)") from None
