@@ -12,7 +12,7 @@ import warpvol as wv
 from warpvol.api import measured_error, remaining_error
 from warpvol.metrics import relative_rmse
 from warpvol.pipeline import SettingsError
-from warpvol.scene.procedural import random_cloud, random_scene
+from warpvol.scene.procedural import brightened, random_cloud, random_scene
 
 
 @pytest.mark.parametrize("aligned, unrelated", [(1.0, 0.0), (0.0, 1.0), (0.6, 0.8)])
@@ -181,3 +181,24 @@ def test_auto_picks_the_fastest_technique_that_meets_the_target():
     assert strict.error_estimate <= 0.1
     with pytest.raises(SettingsError, match="auto: give target_error"):
         wv.render(scene, "auto", device="cpu")
+
+
+@pytest.mark.parametrize("technique, scene", [("raymarch", random_scene(2)), ("light_shafts", random_scene(4)),
+                                              ("depth_impostors", random_cloud(1)),
+                                              ("illumination_network", random_cloud(0)), ("reference", random_scene(3))])
+def test_target_error_does_not_depend_on_brightness(technique, scene):
+    """Every light and the sky times k = 1e-4, 1, 1e4: the image is k times as bright, and
+    target_error picks the same settings and reports the same estimate, as the error measure
+    is scale-free. What is left is float32 rounding: the image's relative 1e-7, the estimate's
+    (a small difference of two images) 1e-7 over the error, some 1e-5 at most: tolerance 1e-3."""
+    frames = []
+    for k in (1e-4, 1.0, 1e4):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            frames.append(wv.render(brightened(scene, k), technique, device="cpu", target_error=0.03))
+    one = frames[1]
+    assert 0.0 < one.error_estimate <= 0.03
+    for k, frame in zip((1e-4, 1e4), (frames[0], frames[2])):
+        assert frame.settings == one.settings and frame.moved_to_limit == one.moved_to_limit
+        assert frame.error_estimate == pytest.approx(one.error_estimate, rel=1e-3)
+        assert wv.relative_rmse(frame.image / k, one.image) < 1e-4

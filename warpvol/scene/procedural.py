@@ -275,6 +275,18 @@ def random_scene(seed: int) -> dict:
             "lights": [light], "media": [medium], "surfaces": floor if rng.random() < 0.5 else []}
 
 
+def brightened(scene: dict, k: float) -> dict:
+    """A copy of the scene table ``scene`` with every light's strength (point ``intensity``,
+    directional ``irradiance``) and the sky (``background``) times ``k``: the same image
+    times k, as light transport is linear in its sources."""
+    def times(v):
+        return float(k * v) if np.isscalar(v) else (k * np.asarray(v, dtype=float)).tolist()
+
+    lights = [{**light, **{key: times(light[key]) for key in ("intensity", "irradiance") if key in light}}
+              for light in scene["lights"]]
+    return {**scene, "lights": lights, "background": [k * c for c in scene.get("background", [0.0, 0.0, 0.0])]}
+
+
 def random_cloud(seed: int) -> dict:
     """A seeded particle cloud (what illumination_network takes): 60 to 200 spheres, sun or
     point light, a sky or none."""

@@ -94,7 +94,7 @@ from ..physics.lights import DIRECTIONAL, Light
 from ..physics.phase import Phase, orthonormal_basis, phase_eval, phase_struct, phase_toward
 from ..physics.sphere import fibonacci_directions
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
-from ..pipeline import Quality, Setting, SettingsError, Stage, Technique
+from ..pipeline import Bias, Quality, Setting, SettingsError, Stage, Technique
 from ..upload import SceneUploads, check_particle_scene, particle_cloud, pinhole
 
 NAME = "illumination_network"
@@ -474,7 +474,8 @@ class IlluminationNetwork(Technique):
     NAME = NAME
     SETTINGS = SETTINGS
     # directions: the converged answer's quadrature, order 1 (measured); each level averages two turned sets
-    QUALITY = Quality("directions", 32, 2048, 1)  # its window and light pass are not yet measured
+    QUALITY = Quality("directions", 32, 2048, 1, biases=(Bias("window", exact=256), Bias("light_pass", exact=0),
+                                                          Bias("light_samples", factor=4, order=1)))
     QUALITY_SEED = "direction_seed"
     # the window follows D by the paper's rule, which moves the answer as D grows (a point light
     # under a dark cloud: 12% a doubling); held at the default D's, the answer settles (order 1)
