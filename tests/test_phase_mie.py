@@ -220,3 +220,14 @@ def test_scene_rejects_bad_droplet_phases(ph, key, allowed):
     with pytest.raises(SceneError) as err:
         scene_from_dict(scene_with(ph))
     assert key in str(err.value) and allowed in str(err.value), str(err.value)
+
+
+def test_a_mie_phase_without_miepython_names_the_extra(monkeypatch):
+    """miepython is the [mie] extra: without it a Mie phase fails at load, before any kernel,
+    with one line naming the key and the extra (its absence simulated: find_spec says none)."""
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "miepython" else real(name, *a))
+    with pytest.raises(SceneError, match=r"media\[0\]\.phase\.type: \"mie\" needs miepython.*warpvol\[mie\]"):
+        scene_from_dict(scene_with({"type": "mie", "median_diameter_um": 10, "sigma": 0.3}))

@@ -144,3 +144,19 @@ def test_depth_impostors_view(tmp_path):
     img = p.screenshot(return_img=True)
     p.close()
     assert not_blank(img) > 0.02
+
+
+def test_view_with_a_technique_from_outside_the_checkout(tmp_path):
+    """``view --technique`` as an installed package runs it: from a folder that is not the
+    repo, so no top-level ``viz`` or ``warpvol`` folder is on the path but the installed ones."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "view.png"
+    run = subprocess.run([sys.executable, "-m", "warpvol", "view", "fog-box", "--technique", "raymarch", "--device", "cpu",
+                          "--set", "shadow_grid=8", "--screenshot", str(out)], cwd=tmp_path, capture_output=True,
+                         text=True, timeout=600)
+    assert run.returncode == 0, run.stderr
+    png = pv.read(str(out))
+    w, h, _ = png.dimensions
+    assert not_blank(np.asarray(png.point_data.active_scalars).reshape(h, w, -1)) > 0.02

@@ -190,7 +190,7 @@ def cmd_bench(args) -> int:
 
 def cmd_view(args) -> int:
     import warpvol as wv
-    from warpvol.viz import scene_plotter
+    from warpvol.viz import scene_plotter, technique_actors
 
     if not args.verbose:  # e.g. "bad X server connection" when rendering off screen
         from vtkmodules.vtkCommonCore import vtkObject
@@ -200,8 +200,6 @@ def cmd_view(args) -> int:
     scene = wv.load_scene(args.scene, overrides)
     plotter = scene_plotter(scene, off_screen=args.screenshot is not None)
     if args.technique:
-        from viz import technique_actors
-
         renderer = wv.Renderer(scene, technique=args.technique, device=args.device, **settings)
         renderer.render()
         technique_actors(plotter, args.technique, renderer.arrays(for_view=True))

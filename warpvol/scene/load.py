@@ -6,6 +6,7 @@ Every problem raises ``SceneError`` with one line: ``FILE: KEY: what is wrong (a
 from __future__ import annotations
 
 import copy
+import importlib.util
 import math
 import os
 import sys
@@ -320,6 +321,9 @@ def _mie_phase(t: _Table) -> Phase:
         t.fail(t.key("sigma"), f"median_diameter_um x exp(2 sigma^2) = {d * math.exp(2 * sigma * sigma):.4g} um, the "
                "cross-section weighted median, has a forward peak narrower than the largest table",
                f"median_diameter_um x exp(2 sigma^2) <= {_MIE_LARGEST_UM:g} um")
+    if importlib.util.find_spec("miepython") is None:
+        raise SceneError(f"{t.source}: {t.key('type')}: \"mie\" needs miepython, which is not installed "
+                         "(allowed: pip install 'warpvol[mie]', or type = \"hg_draine\", its fit)")
     return Phase("tabulated", values=mie.mie_table(d, sigma, index).mean.astype(np.float32))
 
 

@@ -74,7 +74,10 @@ def load_miepython():
     """miepython with its numba kernels: it reads MIEPYTHON_USE_JIT once, when first imported,
     so this sets it (unless the caller did) before that import, and warns if it came too late."""
     os.environ.setdefault("MIEPYTHON_USE_JIT", "1")
-    import miepython
+    try:
+        import miepython
+    except ImportError:
+        raise ImportError("phase = {type = \"mie\"} needs miepython: pip install 'warpvol[mie]'") from None
 
     if not miepython.USE_JIT and os.environ["MIEPYTHON_USE_JIT"] == "1":
         warnings.warn("miepython was imported before warpvol.scene.mie set MIEPYTHON_USE_JIT=1: its pure-Python "
