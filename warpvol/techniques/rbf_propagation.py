@@ -32,7 +32,8 @@ fixed-step ray march that reads both (equations 5, 8-10). Stages:
   (Jacobi, as the paper's fragment shader; 0 = 3n sweeps, enough for the wave to cross
   the grid); ``wavefront = 1`` (the paper's future work) updates only the shell of cells
   at Manhattan distance k from the light at step k, in place, so each cell is computed
-  once (the other cells of each launch only test their shell index and return). Only the
+  once: a launch covers the shell only (2 n^2 threads per light, each taking a pair of
+  indices on two axes and solving the third: O(n^3) in all, not O(n^4)). Only the
   shells that hold a grid cell are launched, from each light's nearest to its farthest
   cell: at most 3(n - 1) + 1 launches wherever the light is (a light outside the grid
   counts from its cell clamped to one cell outside the grid, which shifts every cell's
@@ -223,33 +224,32 @@ def anchor_offset(light: Light, g: wp.vec3i, v: Volume, i: int, j: int, k: int) 
     return wp.vec3i(wp.abs(i - g[0]), wp.abs(j - g[1]), wp.abs(k - g[2]))
 
 
-@wp.kernel
-def propagate_optical_depth(offset: int, ev: wp.array(dtype=wp.vec3), v: Volume, lights: wp.array(dtype=Light),
-                            light_cell: wp.array(dtype=wp.vec3i), shell_base: wp.array(dtype=int), rule: int,
-                            shell: int, tau_in: wp.array(dtype=wp.vec3), tau_out: wp.array(dtype=wp.vec3)):
-    """One propagation step for every (light, cell): equation 6 (rule 0) or its corrected form.
-    ``shell`` >= 0: update only cells at Manhattan distance ``shell_base[light] + shell`` from
-    the light (wavefront, in place: tau_in is tau_out); -1: a whole-grid Jacobi sweep."""
-    tid = wp.tid() + offset
+@wp.func
+def axis_offset(light: Light, g: wp.vec3i, v: Volume, axis: int, i: int) -> int:
+    """``anchor_offset`` along one axis, for index ``i`` on it."""
+    if light.kind == DIRECTIONAL:
+        w = light.direction[axis]
+        return wp.where(w > 0.0, i, wp.where(w < 0.0, v.n[axis] - 1 - i, 0))
+    return wp.abs(i - g[axis])
+
+
+@wp.func
+def update_cell(l: int, i: int, j: int, k: int, a: wp.vec3i, wave: int, ev: wp.array(dtype=wp.vec3), v: Volume,
+                light: Light, rule: int, tau_in: wp.array(dtype=wp.vec3), tau_out: wp.array(dtype=wp.vec3)):
+    """One propagation step of light ``l`` at cell (i, j, k), ``a`` its offset from the light
+    (``anchor_offset``): equation 6 (rule 0) or its corrected form, read from ``tau_in``."""
     cells = v.n[0] * v.n[1] * v.n[2]
-    l = tid / cells
-    c = tid % cells
-    i = c % v.n[0]
-    j = (c / v.n[0]) % v.n[1]
-    k = c / (v.n[0] * v.n[1])
-    a = anchor_offset(lights[l], light_cell[l], v, i, j, k)
-    if shell >= 0 and a[0] + a[1] + a[2] != shell_base[l] + shell:
-        return
+    c = cell_index(v, i, j, k)
     x = cell_centre(v, i, j, k)
     sig = ev[c]
-    w = light_flow(lights[l], x)
+    w = light_flow(light, x)
     base = l * cells
     wsum = float(0.0)
     acc = wp.vec3(0.0)
     for axis in range(3):
         comp = w[axis]
         use = comp != 0.0
-        if shell >= 0 and a[axis] == 0 and lights[l].kind != DIRECTIONAL:
+        if wave != 0 and a[axis] == 0 and light.kind != DIRECTIONAL:
             use = False  # in the light's own slab that neighbour lies on the next shell, not upwind
         if use:
             step = wp.where(comp > 0.0, 1, -1)
@@ -273,16 +273,76 @@ def propagate_optical_depth(offset: int, ev: wp.array(dtype=wp.vec3), v: Volume,
             acc += weight * t_n
             wsum += weight
     out = wp.vec3(0.0)
-    own = lights[l].kind != DIRECTIONAL and a[0] + a[1] + a[2] == 0
+    own = light.kind != DIRECTIONAL and a[0] + a[1] + a[2] == 0
     if own or wsum <= 0.0:  # the light's own cell
         out = sig
-        if rule == 1 and lights[l].kind != DIRECTIONAL:
-            out = sig * wp.length(x - lights[l].position)
+        if rule == 1 and light.kind != DIRECTIONAL:
+            out = sig * wp.length(x - light.position)
     elif rule == 1:
         out = (acc + sig) / wsum
     else:
         out = sig + acc / wsum
     tau_out[base + c] = out
+
+
+@wp.kernel
+def propagate_optical_depth(offset: int, ev: wp.array(dtype=wp.vec3), v: Volume, lights: wp.array(dtype=Light),
+                            light_cell: wp.array(dtype=wp.vec3i), rule: int, tau_in: wp.array(dtype=wp.vec3),
+                            tau_out: wp.array(dtype=wp.vec3)):
+    """A whole-grid Jacobi sweep: one propagation step for every (light, cell)."""
+    tid = wp.tid() + offset
+    cells = v.n[0] * v.n[1] * v.n[2]
+    l = tid / cells
+    c = tid % cells
+    i = c % v.n[0]
+    j = (c / v.n[0]) % v.n[1]
+    k = c / (v.n[0] * v.n[1])
+    a = anchor_offset(lights[l], light_cell[l], v, i, j, k)
+    update_cell(l, i, j, k, a, 0, ev, v, lights[l], rule, tau_in, tau_out)
+
+
+@wp.kernel
+def propagate_shell(offset: int, ev: wp.array(dtype=wp.vec3), v: Volume, lights: wp.array(dtype=Light),
+                    light_cell: wp.array(dtype=wp.vec3i), shell_base: wp.array(dtype=int),
+                    solve_axis: wp.array(dtype=int), rule: int, shell: int, tau: wp.array(dtype=wp.vec3)):
+    """The wavefront's step ``shell``, in place: the cells at offset ``shell_base[light] +
+    shell`` from each light. A thread takes one pair of indices on the two axes other than
+    ``solve_axis[light]`` and one of the (at most two) indices on that axis that put the cell
+    on the shell, so a launch is 2 n^2 threads per light, not n^3."""
+    tid = wp.tid() + offset
+    nm = wp.max(v.n[0], wp.max(v.n[1], v.n[2]))
+    per = 2 * nm * nm
+    l = tid / per
+    r = tid % per
+    side = r % 2
+    u = (r / 2) % nm
+    w = (r / 2) / nm
+    s = solve_axis[l]
+    p = (s + 1) % 3
+    q = (s + 2) % 3
+    if u >= v.n[p] or w >= v.n[q]:
+        return
+    light = lights[l]
+    g = light_cell[l]
+    rest = shell_base[l] + shell - axis_offset(light, g, v, p, u) - axis_offset(light, g, v, q, w)
+    if rest < 0:
+        return
+    x = int(0)
+    if light.kind == DIRECTIONAL:  # solve_axis is one the light travels along: one index
+        if side == 1:
+            return
+        x = wp.where(light.direction[s] > 0.0, rest, v.n[s] - 1 - rest)
+    else:  # |x - g| = rest
+        if side == 1 and rest == 0:
+            return
+        x = wp.where(side == 0, g[s] - rest, g[s] + rest)
+    if x < 0 or x >= v.n[s]:
+        return
+    i = wp.where(s == 0, x, wp.where(p == 0, u, w))
+    j = wp.where(s == 1, x, wp.where(p == 1, u, w))
+    k = wp.where(s == 2, x, wp.where(p == 2, u, w))
+    a = anchor_offset(light, g, v, i, j, k)
+    update_cell(l, i, j, k, a, 1, ev, v, light, rule, tau, tau)
 
 
 @wp.kernel
@@ -432,19 +492,22 @@ class RBFPropagation(Technique):
         tau = wp.zeros(count, dtype=wp.vec3, device=self.device)
         lights = self.uploads.lights
         cells, base, shells = self.shell_plan()
+        solve = [2 if light.type != "directional" else int(np.argmax(np.abs(light.direction)))
+                 for light in self.scene.lights]  # the axis a shell thread solves for (one the light travels along)
         cells = wp.array(cells, dtype=wp.vec3i, device=self.device)
         base = wp.array(base, dtype=int, device=self.device)
+        solve = wp.array(solve, dtype=int, device=self.device)
         self.launches = 0
         if self.settings["wavefront"]:
             for shell in range(shells):
-                dev.launch(propagate_optical_depth, count, [self.ev, v, lights, cells, base, self.settings["rule"], shell,
-                                                            tau, tau], self.device)
+                dev.launch(propagate_shell, len(self.scene.lights) * 2 * n * n,
+                           [self.ev, v, lights, cells, base, solve, self.settings["rule"], shell, tau], self.device)
                 self.launches += 1
         else:
             other = wp.zeros_like(tau)
             for _ in range(self.settings["iterations"] or 3 * n):
-                dev.launch(propagate_optical_depth, count, [self.ev, v, lights, cells, base, self.settings["rule"], -1,
-                                                            tau, other], self.device)
+                dev.launch(propagate_optical_depth, count, [self.ev, v, lights, cells, self.settings["rule"], tau,
+                                                            other], self.device)
                 self.launches += 1
                 tau, other = other, tau
         self.opv = tau
