@@ -65,6 +65,48 @@ def check_scene(kind: str, seed: int) -> tuple[dict, float]:
     return scene, k
 
 
+def write(args, ap, out: Path, path: Path, rows: list) -> None:
+    """data.json and README.md of the rows so far."""
+    command = "PYTHONPATH=. .venv/bin/python -m bench.target_error_check"
+    for key in ("first", "out"):  # the options that change which scenes or where they go
+        if getattr(args, key) != ap.get_default(key):
+            command += f" --{key} {getattr(args, key)}"
+    doc = {"command": command, "device": device_name("cpu"),
+           "machine": platform.processor() or platform.machine(), "warp": wp.config.version, "commit": git_commit(),
+           "measured": time.strftime("%Y-%m-%d %H:%M:%S"), "rows": rows}
+    path.write_text(json.dumps(doc, indent=1) + "\n")
+    lines = ["# target_error on seeded random scenes", "",
+             f"Measured by `{doc['command']}` on {doc['device']} (Warp {doc['warp']}, commit {doc['commit']}, "
+             f"{doc['measured']}); data: [data.json](data.json).", "",
+             f"Each technique renders seeded random scenes, seeds {args.first} to {args.first + args.scenes - 1} "
+             "(`bench.target_error_check.check_scene`: `warpvol.scene.procedural.random_scene`, a homogeneous "
+             "box or sphere or a random density grid, thin to thick (sigma_t 0.1-5), point or directional light, "
+             "sky or none, floor or none, half of them with a sphere occluder; `random_cloud`, 60-200 spheres), "
+             "every light and the sky times k = 10^U(-3, 3), the point light inside the medium or 2.5 units "
+             "outside it. The truth is the same technique with every discretisation setting at its limit "
+             "(column *truth*). Met: the truth at most the target. Within 2x: estimate / truth in [0.5, 2]. "
+             "Moved: scenes where target_error took a bias setting to its limit (`frame.moved_to_limit`).", "",
+             "| technique | target | truth | scenes | mean radiance (min, max) | met | within 2x | "
+             "estimate / truth (min, median, max) | knob chosen (median) | moved |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for technique in CASES:
+        rs = [r for r in rows if r["technique"] == technique]
+        if not rs:
+            continue
+        ratio = np.array([r["estimate"] / r["truth"] if r["truth"] > 0 else np.inf for r in rs])
+        knob = [list(r["knob"].values())[0] for r in rs if r["knob"]]
+        radiance = [r["mean_radiance"] for r in rs]
+        moved = {k: sum(k in r["moved"] for r in rs) for k in sorted({k for r in rs for k in r["moved"]})}
+        lines.append(f"| {technique} | {rs[0]['target']} | {rs[0]['truth_is']} | {len(rs)} | "
+                     f"{min(radiance):.2g}, {max(radiance):.2g} | "
+                     f"{sum(r['truth'] <= r['target'] for r in rs)} | {int(np.sum((ratio >= 0.5) & (ratio <= 2)))} | "
+                     f"{ratio.min():.2f}, {np.median(ratio):.2f}, {ratio.max():.2f} | "
+                     f"{int(np.median(knob)) if knob else '–'} | "
+                     f"{', '.join(f'{k} ({n})' for k, n in moved.items()) or '–'} |")
+    (out / "README.md").write_text("\n".join(lines) + "\n")
+
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenes", type=int, default=10)
@@ -102,39 +144,6 @@ def main(argv=None) -> None:
                          "seconds": seconds})
             print(f"{technique} {kind}({seed}): estimate {frame.error_estimate:.3g} truth {truth:.3g} "
                   f"{rows[-1]['knob']} {seconds:.1f} s", flush=True)
-    command = "PYTHONPATH=. .venv/bin/python -m bench.target_error_check"
-    for key in ("first", "out"):  # the options that change which scenes or where they go
-        if getattr(args, key) != ap.get_default(key):
-            command += f" --{key} {getattr(args, key)}"
-    doc = {"command": command, "device": device_name("cpu"),
-           "machine": platform.processor() or platform.machine(), "warp": wp.config.version, "commit": git_commit(),
-           "measured": time.strftime("%Y-%m-%d %H:%M:%S"), "rows": rows}
-    path.write_text(json.dumps(doc, indent=1) + "\n")
-    lines = ["# target_error on seeded random scenes", "",
-             f"Measured by `{doc['command']}` on {doc['device']} (Warp {doc['warp']}, commit {doc['commit']}, "
-             f"{doc['measured']}); data: [data.json](data.json).", "",
-             f"Each technique renders seeded random scenes, seeds {args.first} to {args.first + args.scenes - 1} "
-             "(`warpvol.scene.procedural.random_scene`: homogeneous "
-             "box or sphere or a random density grid, point or directional light, sky or none, floor or none; "
-             "`random_cloud`: 60-200 spheres) with `target_error`; the truth is the same technique at a fine "
-             "setting. Met: the truth at most the target. Within 2x: estimate / truth in [0.5, 2]. The levelled "
-             "techniques stop at the first level whose three-level extrapolation meets the target and whose "
-             "error, measured against the next level (`warpvol.api.measured_error`), does too; the reference "
-             "at its two runs' standard error.", "",
-             "| technique | target | truth | scenes | met | within 2x | estimate / truth (min, median, max) | "
-             "knob chosen (median) |", "|---|---|---|---|---|---|---|---|"]
-    for technique in CASES:
-        rs = [r for r in rows if r["technique"] == technique]
-        if not rs:
-            continue
-        ratio = np.array([r["estimate"] / r["truth"] if r["truth"] > 0 else np.inf for r in rs])
-        knob = [list(r["knob"].values())[0] for r in rs if r["knob"]]
-        lines.append(f"| {technique} | {rs[0]['target']} | {rs[0]['truth_is']} | {len(rs)} | "
-                     f"{sum(r['truth'] <= r['target'] for r in rs)} | {int(np.sum((ratio >= 0.5) & (ratio <= 2)))} | "
-                     f"{ratio.min():.2f}, {np.median(ratio):.2f}, {ratio.max():.2f} | "
-                     f"{int(np.median(knob)) if knob else '–'} |")
-    (out / "README.md").write_text("\n".join(lines) + "\n")
-
-
+        write(args, ap, out, path, rows)  # after each scene: a stopped run keeps what it measured
 if __name__ == "__main__":
     main()
