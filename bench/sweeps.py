@@ -133,7 +133,7 @@ def _overhead(params: dict, device: str, quick: bool) -> dict:
     return row
 
 
-# --- light shafts (papers/001) ----------------------------------------------------------------
+# --- light shafts (Tóth & Umenhoffer 2009) ----------------------------------------------------------------
 
 def shafts_scene(quick: bool, width=800, height=600):
     """colonnade-shafts: 65 660 triangles, one point light in homogeneous fog."""
@@ -263,7 +263,7 @@ def _shafts_paper_fps(table: dict, params: dict):
     return next((r["fps"] for r in table["rows"] if r["mode"] == params.get("mode")), None)
 
 
-# --- RBF propagation (papers/003) -------------------------------------------------------------
+# --- RBF propagation (Giroud & Biri 2011) -------------------------------------------------------------
 
 TABLE2_COLUMNS = {"1L_P": (1, False), "1L": (1, True), "2L": (2, True), "4L": (4, True), "8L": (8, True)}
 
@@ -382,7 +382,7 @@ def _rbf_accuracy(params: dict, device: str, quick: bool) -> dict:
     return score_against_reference(time_frames(r, repeats=2 if quick else 3), scene, device, 16 if quick else 1024)
 
 
-# --- illumination networks (papers/000) -----------------------------------------------------
+# --- illumination networks (Szirmay-Kalos et al. 2005) -----------------------------------------------------
 
 SUN2 = {"type": "directional", "direction": [0.6, 0.8, -0.3], "irradiance": 1.5}  # the paper's second, bottom-right
 
@@ -687,14 +687,14 @@ def _row_fps(table: dict, params: dict):
     return None
 
 
-# --- depth impostors (papers/004) ----------------------------------------------------------
+# --- depth impostors (Umenhoffer & Szirmay-Kalos 2005) ----------------------------------------------------------
 
 IMPOSTOR_SUN = {"type": "directional", "direction": [0.5, -0.8, -0.3], "irradiance": 2.0}
 
 
 def impostor_scene(quick: bool, n: int = 8000, per_block: int = 200, width: int = 512, surface: bool = False,
                    seed: int = 3):
-    """papers/004's set-up: ``n`` particles built of n / per_block copies of one block (one
+    """Umenhoffer & Szirmay-Kalos 2005's set-up: ``n`` particles built of n / per_block copies of one block (one
     particle a block: the paper's "no blocks"), one directional light. The block's radius
     scales as (per_block / n)^(1/3), so the cloud's volume and density stay put; particle
     radius 0.04 x (8000 / n)^(1/3), sigma_t 12 (sigma_t r = 0.48 at 8000), albedo 0.9, HG
@@ -838,7 +838,7 @@ def _impostor_objects(params: dict, device: str, quick: bool) -> dict:
     return row
 
 
-# --- particle glow (papers/002) ----------------------------------------------------------------
+# --- particle glow (the glowy-light paper) ----------------------------------------------------------------
 
 
 def glow_scene(quick: bool, width: int = 320, height: int = 240):
@@ -1169,7 +1169,7 @@ def _speed(params: dict, device: str, quick: bool) -> dict:
 
 
 SWEEPS: dict[str, Sweep] = {s.name: s for s in [
-    Sweep("depth-impostors", "papers/004 figure 5: 8000 particles under one directional light, no blocks and 1600, "
+    Sweep("depth-impostors", "Umenhoffer & Szirmay-Kalos 2005 figure 5: 8000 particles under one directional light, no blocks and 1600, "
           "800, 400, 40, 20 blocks; a frame of an animated cloud under a moving light at 512x512",
           "depth_impostors", "paper", _impostor_fig5_grid, _impostor_frame, paper=("depth_impostors",),
           figure=_row_fps, issue=15),
@@ -1180,10 +1180,10 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
           "S = 1..32, impostor resolution 4..64, Fourier terms K = 2..16, the exact light, sky directions 0..64 and the "
           "forward-scattering widening 0.5..4 radii (also against the multiple-scattering reference)",
           "depth_impostors", "accuracy", _impostor_accuracy_grid, _impostor_accuracy, issue=15),
-    Sweep("depth-impostors-objects", "objects in clouds (papers/004 section 2.4): a plane through the cloud, depth "
+    Sweep("depth-impostors-objects", "objects in clouds (Umenhoffer & Szirmay-Kalos 2005 section 2.4): a plane through the cloud, depth "
           "impostors against billboards, both against the single-scattering reference",
           "depth_impostors", "accuracy", _impostor_objects_grid, _impostor_objects, issue=15),
-    Sweep("particle-glow-figure5", "particle_glow: papers/002 figure 5's density distributions (mu, sigma; A: 2, "
+    Sweep("particle-glow-figure5", "particle_glow: the glowy-light paper figure 5's density distributions (mu, sigma; A: 2, "
           "0.1; B: 0, 0.1), the defaults (0.5, 0.5), log-normal (cdf 0, the text) and normal (cdf 1, equation 2 as "
           "printed) CDFs, dusty-lamp 320x240", "particle_glow", "table", _glow_figure5_grid, _glow_figure5, issue=16),
     Sweep("particle-glow-physics", "particle_glow against the reference on the same homogeneous medium (single and "
@@ -1204,7 +1204,7 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
           "raymarch", "accuracy", _raymarch_grid, _raymarch_accuracy),
     Sweep("pipeline-overhead", "the pipeline's bookkeeping per frame (stage cache checks, timing, the Frame)",
           "raymarch", "overhead", _overhead_grid, _overhead),
-    Sweep("light-shafts", "papers/001 section 5: no scattering / scattering / scattering + interleaved (N = 64, "
+    Sweep("light-shafts", "Tóth & Umenhoffer 2009 section 5: no scattering / scattering / scattering + interleaved (N = 64, "
           "M = 4), colonnade-shafts 800x600, camera and light moving (shadow maps, surface pass, march, block sums "
           "every frame; the BVH of the static geometry cached)",
           "light_shafts", "paper", _shafts_table_grid, _shafts_frame, paper=("light_shafts",),
@@ -1223,15 +1223,15 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
           "1024-step raymarch with exact shadow rays) vs ms per frame, over N, M and shadow-map resolution, "
           "colonnade-shafts 320x240",
           "light_shafts", "accuracy", _shafts_accuracy_grid, _shafts_accuracy, issue=4),
-    Sweep("rbf-table2", "papers/003 Table 2: grid 15..40, 1 light precomputed (P: only the march runs) and 1/2/4/8 "
+    Sweep("rbf-table2", "Giroud & Biri 2011 Table 2: grid 15..40, 1 light precomputed (P: only the march runs) and 1/2/4/8 "
           "dynamic lights (medium and lights change every frame), rbf-thick-fog's 1000 RBFs, 800x600",
           "rbf_propagation", "paper", _table2_grid, _table2, paper=("rbf_propagation", "table2"),
           figure=_table2_fps, issue=5),
-    Sweep("rbf-table3", "papers/003 Table 3: 1..27 000 RBFs at grid 20, one light, dynamic (all stages) and static "
+    Sweep("rbf-table3", "Giroud & Biri 2011 Table 3: 1..27 000 RBFs at grid 20, one light, dynamic (all stages) and static "
           "(only the march), 800x600",
           "rbf_propagation", "paper", _table3_grid, _table3, paper=("rbf_propagation", "table3"),
           figure=_table3_fps, issue=5),
-    Sweep("rbf-propagation-rules", "papers/003 equation 6 as printed (rule 0) and corrected (rule 1), wavefront or "
+    Sweep("rbf-propagation-rules", "Giroud & Biri 2011 equation 6 as printed (rule 0) and corrected (rule 1), wavefront or "
           "whole-grid sweeps, against optical depth marched from each cell centre to each light (rbf-cornell)",
           "rbf_propagation", "rules", _rules_grid, _rules, issue=5),
     Sweep("rbf-scaling", "rbf_propagation: propagation time against cells x sweeps and march time against pixels x "
@@ -1240,7 +1240,7 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
     Sweep("rbf-accuracy", "rbf_propagation: relative RMSE against the single-scattering reference vs ms per frame, "
           "over grid size and march steps, rbf-cornell 80x60",
           "rbf_propagation", "accuracy", _rbf_accuracy_grid, _rbf_accuracy, issue=5),
-    Sweep("illumination-network", "papers/000 section 4: 1024 and 512 particles at 128 directions, one iteration "
+    Sweep("illumination-network", "Szirmay-Kalos et al. 2005 section 4: 1024 and 512 particles at 128 directions, one iteration "
           "per frame, lights and camera moving, 512x512 (direct light, emission, one iteration, splat)",
           "illumination_network", "paper", _network_table_grid, _network_frame, paper=("illumination_network",),
           figure=_row_fps, issue=6),
@@ -1248,21 +1248,21 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
           "directions), window by the paper's rule unless given: frame, one iteration (with its multiply-add rate) "
           "and the visibility-network build",
           "illumination_network", "paper", _network_sweep_grid, _network_frame, issue=6),
-    Sweep("illumination-network-convergence", "papers/000 figure 6: change per iteration and error to the converged "
+    Sweep("illumination-network-convergence", "Szirmay-Kalos et al. 2005 figure 6: change per iteration and error to the converged "
           "solution, iterating from zero, 1024 particles, 128 directions, albedo 0.9 and 0.99, the window by the "
           "paper's rule (window=0, M = 63) and M = 16",
           "illumination_network", "convergence", _convergence_grid, _convergence, issue=6),
     Sweep("illumination-network-accuracy", "illumination_network: converged image against the multiple-scattering "
           "reference vs ms per frame (lights moving), over N, D and the window M, 48x48",
           "illumination_network", "accuracy", _network_accuracy_grid, _network_accuracy, issue=6),
-    Sweep("illumination-network-animated", "beyond papers/000: a drifting cloud with the visibility network "
+    Sweep("illumination-network-animated", "beyond Szirmay-Kalos et al. 2005: a drifting cloud with the visibility network "
           "re-peeled k directions a frame (0: all), error against the full rebuild per frame and frame time",
           "illumination_network", "animated", _animated_grid, _animated, issue=6),
     Sweep("illumination-network-lightpass", "the shared light pass (media/lightpass.py) in illumination_network: "
           "exact transmittance (BVH) at 4, 16, 64 points a sphere, depth slices S = 4..64 and Fourier terms "
           "K = 4..32 at 16 points; the direct light per particle against the exact sphere mean, and the image",
           "illumination_network", "lightpass", _lightpass_grid, _lightpass_accuracy, issue=20),
-    Sweep("illumination-network-albedo", "papers/000's bound: the error of one step eps grows to at most "
+    Sweep("illumination-network-albedo", "Szirmay-Kalos et al. 2005's bound: the error of one step eps grows to at most "
           "eps / (1 - a); single- and multiple-scattering RMSE against the reference at albedo 0.5, 0.8, 0.95",
           "illumination_network", "bound", _albedo_grid, _albedo_bound, issue=6),
     Sweep("reference-speed", "the reference path tracer: camera paths per second (and per core) on the built-in "

@@ -28,7 +28,7 @@ def test_raymarch_frame(benchmark, steps):
 
 @pytest.mark.parametrize("particles,directions", [(512, 128), (1024, 128), (1024, 256)])
 def test_illumination_network_iteration(benchmark, particles, directions):
-    """One iteration of papers/000's update (S = I P, then the gather), the paper's cloud."""
+    """One iteration of Szirmay-Kalos et al. 2005's update (S = I P, then the gather), the paper's cloud."""
     import warp as wp
 
     from warpvol.bench.sweeps import network_scene
@@ -61,7 +61,7 @@ def test_illumination_network_build(benchmark):
 
 @pytest.mark.parametrize("stage,raster", [("shadow_maps", 1), ("shadow_maps", 0), ("visible", 1), ("visible", 0)])
 def test_light_shafts_passes(benchmark, stage, raster):
-    """papers/001's shadow-map pass and visible-surface pass on colonnade-shafts (65 660 triangles,
+    """Tóth & Umenhoffer 2009's shadow-map pass and visible-surface pass on colonnade-shafts (65 660 triangles,
     800x600, 256^2 cube map): rasterised (raster = 1) against BVH ray casts (raster = 0)."""
     from warpvol.bench.sweeps import shafts_scene
 

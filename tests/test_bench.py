@@ -56,8 +56,8 @@ def test_interrupted_sweep_keeps_its_rows_and_measures_the_rest(out):
 
 
 def test_sweeps_waiting_for_a_technique_say_so(out, capsys, monkeypatch):
-    # a paper's sweep lands before its technique (papers/002 here)
-    monkeypatch.setitem(SWEEPS, "particle-glow", Sweep("particle-glow", "papers/002", "particle_glow", "paper"))
+    # a paper's sweep lands before its technique (the glowy-light paper here)
+    monkeypatch.setitem(SWEEPS, "particle-glow", Sweep("particle-glow", "the glowy-light paper", "particle_glow", "paper"))
     assert main(["bench", "--list"]) == 0
     listing = capsys.readouterr().out
     assert "raymarch-accuracy" in listing and "waits for particle_glow (no issue yet)" in listing

@@ -1,4 +1,4 @@
-"""Depth impostors (papers/004): the impostor of a block against ray-sphere chords, blocks
+"""Depth impostors (Umenhoffer & Szirmay-Kalos 2005): the impostor of a block against ray-sphere chords, blocks
 found in a block-built cloud, objects in clouds (depth impostors against billboards), the
 pipeline's caching, and the hard cases (one particle, all particles at one point, alpha -> 1,
 a light inside the cloud and at a particle's centre, a surface through block centres,

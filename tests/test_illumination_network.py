@@ -1,4 +1,4 @@
-"""Illumination networks (papers/000): the visibility network, the iteration's fixed points in
+"""Illumination networks (Szirmay-Kalos et al. 2005): the visibility network, the iteration's fixed points in
 closed form, the splat of one particle, and the hard cases (albedo 1, a light at a particle's
 centre, particles on a plane, D = 1, float16)."""
 

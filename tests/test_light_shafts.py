@@ -1,4 +1,4 @@
-"""Light shafts (papers/001): agreement with closed forms, the raymarch baseline and the
+"""Light shafts (Tóth & Umenhoffer 2009): agreement with closed forms, the raymarch baseline and the
 reference; interleaving; the hard cases of the issue; the stages a scene calls for."""
 
 import numpy as np

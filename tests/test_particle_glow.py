@@ -1,4 +1,4 @@
-"""Particle glow (papers/002): Sun et al.'s G_0 against a direct integration of the airlight
+"""Particle glow (the glowy-light paper): Sun et al.'s G_0 against a direct integration of the airlight
 over the hemisphere, the march of equation 1 against a numpy replica, the reductions (no
 glow, zero weight: the single-scattering march, equal to raymarch without occluders), the
 jitter fixed in the world, and the hard cases (d -> 0 and 1, T_sp -> 0 and large, a light

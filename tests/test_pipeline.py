@@ -1,6 +1,6 @@
 """The pipeline runs only what the scene calls for and what a change invalidated.
 
-The rule is papers/003 Table 1, asserted through ``frame.stages`` on the raymarch technique
+The rule is Giroud & Biri 2011 Table 1, asserted through ``frame.stages`` on the raymarch technique
 with a baked light volume: ``medium`` is its density stage (the grid is injected into
 device memory), ``light_volume`` its propagation stage (transmittance from each light,
 reads the medium and the lights), ``march`` the per-frame image.

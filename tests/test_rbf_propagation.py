@@ -1,4 +1,4 @@
-"""RBF propagation (papers/003): injection against the RBF sum, the propagation rules against
+"""RBF propagation (Giroud & Biri 2011): injection against the RBF sum, the propagation rules against
 exact optical depths, the image against the reference, Table 1 through frame.stages, and the
 hard cases of the issue."""
 

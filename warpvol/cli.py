@@ -212,6 +212,20 @@ def cmd_view(args) -> int:
     return 0
 
 
+def cmd_docs(args) -> int:
+    from pathlib import Path
+
+    from warpvol.docs import write
+
+    root = Path(args.root)
+    if not (root / "docs").is_dir() or not (root / "README.md").exists():
+        raise ValueError(f"{root}: not a warpvol checkout (allowed: --root the folder with README.md and docs/)")
+    stale = write(root, check=args.check)
+    for path in stale:
+        print(f"{path}: {'out of date' if args.check else 'written'}")
+    return 1 if args.check and stale else 0
+
+
 def cmd_scenes(args) -> int:
     from warpvol.scene.procedural import BUILTIN
 
@@ -265,6 +279,11 @@ def main(argv: list[str] | None = None) -> int:
                    "(light_shafts: shadow-map depth surfaces, lit slice; rbf_propagation: OPV error per cell)")
     v.add_argument("--device", default=None, help="cpu | cuda (for --technique)")
     v.set_defaults(func=cmd_view)
+    d = sub.add_parser("docs", parents=[common], help="write docs/scene-format.md and the generated tables of docs/ "
+                       "and README from the code (--check: only say which are out of date)")
+    d.add_argument("--root", default=".", help="the checkout (default: .)")
+    d.add_argument("--check", action="store_true", help="write nothing; exit 1 if a page is out of date")
+    d.set_defaults(func=cmd_docs)
     s = sub.add_parser("scenes", parents=[common], help="list the built-in scenes")
     s.set_defaults(func=cmd_scenes)
     args = parser.parse_args(argv)

@@ -14,7 +14,7 @@ A change is a version bump of a scene part: ``Pipeline.update`` bumps what it re
 and a part marked ``static = false`` in the scene is treated as changed every frame
 (animated). A stage's cache key is the versions of the parts it reads, the values of the
 settings it reads and the run counts of the stages it follows, so a re-run propagates
-downstream and nothing else. This is the rule of papers/003, Table 1.
+downstream and nothing else. This is the rule of Giroud & Biri 2011, Table 1.
 """
 
 from __future__ import annotations

@@ -2,8 +2,8 @@
 
 A particle technique needs, for every particle and light, the transmittance from the light
 to the particle through the rest of the cloud. Testing every sphere against every light
-ray is O(N^2). The light pass instead renders the cloud once from each light (papers/000:
-"rendering the volume from the point of view of the light source"; papers/004's light
+ray is O(N^2). The light pass instead renders the cloud once from each light (Szirmay-Kalos et al. 2005:
+"rendering the volume from the point of view of the light source"; Umenhoffer & Szirmay-Kalos 2005's light
 pass) into a light-space opacity map, O(N x footprint) work, and reads the optical depth
 back at any point in O(1). One function, ``LightPass``, builds it; ``sphere_light`` reads it
 for every (particle, light).
@@ -15,7 +15,7 @@ light; a light inside the ball (inside the cloud, at a particle's centre) gets a
 six 90-degree faces, depth 0 to d + R. Each face has M x M texels; a texel stores the
 optical depth along the ray through its centre, in one of two representations:
 
-* ``slices`` (papers/004's depth slices): the optical depth at S + 1 depths evenly spaced
+* ``slices`` (Umenhoffer & Szirmay-Kalos 2005's depth slices): the optical depth at S + 1 depths evenly spaced
   over the face's depth range, tau_k = tau(near + k (far - near) / S). Each sphere adds its
   chord's exact share to every slice interval it crosses (not, as the paper does, all of
   it to the slice of its centre), so the map is exact at the slice depths; between them it

@@ -40,6 +40,10 @@ class SceneError(ValueError):
 
 _REQUIRED = object()
 
+#: While not None, every key a ``_Table`` reads is appended here as (table, variant, key, kind,
+#: default, allowed): how ``warpvol.scene.doc`` writes docs/scene-format.md from the loader itself.
+RECORD: list | None = None
+
 
 class _Table:
     """Reads one TOML table, checking types and ranges, and reports keys nobody read."""
@@ -58,8 +62,12 @@ class _Table:
     def fail(self, key: str, problem: str, allowed: str):
         raise SceneError(f"{self.source}: {key}: {problem} (allowed: {allowed})")
 
-    def raw(self, name: str, default=_REQUIRED, allowed: str = ""):
+    def raw(self, name: str, default=_REQUIRED, allowed: str = "", kind: str = "value"):
         self.used.add(name)
+        if RECORD is not None:
+            variant = self.data.get("type", self.data.get("kind", "")) if name not in ("type", "kind") else ""
+            RECORD.append((self.where, variant if isinstance(variant, str) else "", name, kind,
+                           None if default is _REQUIRED else default, allowed))
         if name not in self.data:
             if default is _REQUIRED:
                 self.fail(self.key(name), "missing", allowed or "a value: this key is required")
@@ -68,7 +76,7 @@ class _Table:
 
     def number(self, name, default=_REQUIRED, lo=-math.inf, hi=math.inf, lo_open=False, hi_open=False, integer=False):
         allowed = _range_text(lo, hi, lo_open, hi_open, integer)
-        v = self.raw(name, default, allowed)
+        v = self.raw(name, default, allowed, "integer" if integer else "number")
         if v is default and default is not _REQUIRED:
             return v
         ok_type = isinstance(v, int) if integer else isinstance(v, (int, float))
@@ -82,7 +90,7 @@ class _Table:
 
     def vec3(self, name, default=_REQUIRED, lo=-math.inf, hi=math.inf, scalar_ok=False, lo_open=False):
         allowed = ("a number or " if scalar_ok else "") + "[x, y, z], each a " + _range_text(lo, hi, lo_open, False, False)
-        v = self.raw(name, default, allowed)
+        v = self.raw(name, default, allowed, "number or [x, y, z]" if scalar_ok else "[x, y, z]")
         if v is default and default is not _REQUIRED:
             return tuple(float(x) for x in v) if isinstance(v, (list, tuple)) else v
         if scalar_ok and isinstance(v, (int, float)) and not isinstance(v, bool):
@@ -102,7 +110,7 @@ class _Table:
 
     def string(self, name, default=_REQUIRED, choices=None):
         allowed = " | ".join(choices) if choices else "a string"
-        v = self.raw(name, default, allowed)
+        v = self.raw(name, default, allowed, "string")
         if not isinstance(v, str):
             self.fail(self.key(name), f"expected a string, got {v!r}", allowed)
         if choices and v not in choices:
@@ -110,13 +118,15 @@ class _Table:
         return v
 
     def boolean(self, name, default=_REQUIRED):
-        v = self.raw(name, default, "true | false")
+        v = self.raw(name, default, "true | false", "boolean")
         if not isinstance(v, bool):
             self.fail(self.key(name), f"expected true or false, got {v!r}", "true | false")
         return v
 
     def path(self, name, base_dir):
-        p = self.string(name)
+        p = self.raw(name, allowed="a file path, relative to the scene file", kind="file")
+        if not isinstance(p, str):
+            self.fail(self.key(name), f"expected a file path, got {p!r}", "a file path, relative to the scene file")
         full = p if os.path.isabs(p) else os.path.join(base_dir, p)
         if not os.path.isfile(full):
             self.fail(self.key(name), f"file {full!r} not found", "an existing file, relative to the scene file")
@@ -181,7 +191,7 @@ def _points(t: _Table, name: str, base_dir: str, what: str, alternatives: str = 
             t.fail(t.key(key), f"{path!r} holds an array of shape {value.shape}", allowed)
     else:
         key, allowed = name, f"[[x, y, z], ...] with at least one {what}, or {alternatives}"
-        value = t.raw(name, allowed=allowed)
+        value = t.raw(name, allowed=allowed, kind="[[x, y, z], ...]")
     a = _array(t, key, value, (3,), allowed)
     if len(a) == 0:
         t.fail(t.key(key), f"has no {what}s" if key == name else f"{path!r} holds no {what}s", allowed)
@@ -197,7 +207,7 @@ def _grid_medium(t: _Table, common: dict, base_dir: str) -> GridMedium:
     if "density" in t.data:
         key = t.key("density")
         try:
-            dens = np.asarray(t.raw("density"))
+            dens = np.asarray(t.raw("density", allowed="a 3-D array (D, H, W), x fastest", kind="array"))
         except ValueError:
             dens = np.zeros(0, object)
         if dens.dtype.kind not in "biuf":
@@ -297,7 +307,7 @@ def _phase(data, where, source) -> Phase:
     if kind in ("hg", "cornette_shanks"):
         ph.g = t.number("g", 0.0, -1.0, 1.0, lo_open=True, hi_open=True)
     if kind == "tabulated":
-        v = _array(t, "values", t.raw("values", allowed="list of >= 2 non-negative numbers"), (), "list of >= 2 non-negative numbers")
+        v = _array(t, "values", t.raw("values", allowed="list of >= 2 non-negative numbers", kind="list"), (), "list of >= 2 non-negative numbers")
         if v.size < 2 or np.any(v < 0) or v.sum() <= 0:
             t.fail(t.key("values"), "needs >= 2 non-negative values, not all zero", "list of >= 2 non-negative numbers")
         ph.values = v
@@ -346,7 +356,7 @@ def _medium(data, where, source, base_dir) -> Medium:
     kind = t.string("type", choices=["homogeneous", "grid", "rbf", "particles"])
     common = dict(
         albedo=t.vec3("albedo", lo=0.0, hi=1.0, scalar_ok=True),
-        phase=_phase(t.raw("phase", None), t.key("phase"), source),
+        phase=_phase(t.raw("phase", None, "a phase table", "table"), t.key("phase"), source),
         static=t.boolean("static", True),
     )
     if kind == "homogeneous":
@@ -367,7 +377,7 @@ def _medium(data, where, source, base_dir) -> Medium:
         radius = t.number("radius", lo=0.0, lo_open=True)
         block_size = 0
         if "generator" in t.data:
-            g = _Table(t.raw("generator"), t.key("generator"), source)
+            g = _Table(t.raw("generator", allowed="a generator table", kind="table"), t.key("generator"), source)
             gen = g.string("kind", choices=["cloud", "blocks"])
             from .procedural import block_particles, cloud_particles
 
@@ -377,7 +387,7 @@ def _medium(data, where, source, base_dir) -> Medium:
             if gen == "cloud":
                 positions = cloud_particles(count=g.number("count", 1024, 1, 10_000_000, integer=True), seed=seed,
                                             center=center, extent=extent)
-            else:  # papers/004: blocks copies of one block of per_block particles
+            else:  # Umenhoffer & Szirmay-Kalos 2005: blocks copies of one block of per_block particles
                 blocks = g.number("blocks", 40, 1, 10_000_000, integer=True)
                 block_size = g.number("per_block", 200, 1, 10_000_000, integer=True)
                 if blocks * block_size > 10_000_000:
@@ -426,7 +436,7 @@ def _surface(data, where, source, base_dir) -> Surface:
         normal = t.vec3("normal", (0.0, 1.0, 0.0))
         if np.linalg.norm(normal) == 0:
             t.fail(t.key("normal"), "is the zero vector", "a non-zero vector")
-        size = t.raw("size", [100.0, 100.0], "[w, h] with w, h > 0")
+        size = t.raw("size", [100.0, 100.0], "[w, h] with w, h > 0", "[w, h]")
         if not isinstance(size, (list, tuple)) or len(size) != 2 or not all(
             isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and x > 0 for x in size
         ):
@@ -456,10 +466,10 @@ def scene_from_dict(data: dict, source: str = "<dict>", base_dir: str = ".") -> 
     t = _Table(data, "", source)
     name = t.string("name", os.path.splitext(os.path.basename(source))[0] if source != "<dict>" else "scene")
     background = t.vec3("background", (0.0, 0.0, 0.0), lo=0.0, scalar_ok=True)
-    camera = _camera(t.raw("camera", allowed="a [camera] table"), source)
+    camera = _camera(t.raw("camera", allowed="a [camera] table", kind="table"), source)
 
     def items(key):
-        v = t.raw(key, [])
+        v = t.raw(key, [], f"[[{key}]] tables", "array of tables")
         if not isinstance(v, list):
             t.fail(key, f"must be an array of tables ([[{key}]]), got {type(v).__name__}", f"[[{key}]] tables")
         return v

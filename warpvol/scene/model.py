@@ -132,7 +132,7 @@ class ParticleMedium(Medium):
     positions: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.float32))
     radius: float = 0.1  # every particle a sphere of this radius
     sigma_t: Vec3 = (1.0, 1.0, 1.0)  # uniform inside each sphere; overlaps add
-    # > 0: the cloud is built of blocks of this many particles (papers/004): positions are
+    # > 0: the cloud is built of blocks of this many particles (Umenhoffer & Szirmay-Kalos 2005): positions are
     # block-major, and every block is the same template of particles, moved
     block_size: int = 0
 

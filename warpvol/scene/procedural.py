@@ -25,7 +25,7 @@ def cloud_particles(count: int, seed: int = 1, center=(0.0, 0.0, 0.0), extent: f
 
 def block_particles(blocks: int, per_block: int, seed: int = 1, center=(0.0, 0.0, 0.0), extent: float = 1.0,
                     block_extent: float = 0.25) -> np.ndarray:
-    """A cloud built of ``blocks`` copies of one block of ``per_block`` particles (papers/004's
+    """A cloud built of ``blocks`` copies of one block of ``per_block`` particles (Umenhoffer & Szirmay-Kalos 2005's
     hierarchy): block centres by ``cloud_particles`` in a ball of radius ``extent``, the block
     a ``cloud_particles`` cluster of radius ``block_extent`` about its own centroid.
     Positions are block-major, (blocks * per_block, 3)."""
@@ -145,7 +145,7 @@ def smoke_grid():
 
 
 def rbf_cornell():
-    """Cornell box with 16 Gaussian puffs and two point lights (papers/003, figure 4)."""
+    """Cornell box with 16 Gaussian puffs and two point lights (Giroud & Biri 2011, figure 4)."""
     g = np.linspace(-0.45, 0.45, 4)
     centers = [[x, -0.4 + 0.25 * np.sin(3 * x + z), z] for x in g for z in g]
     return {
@@ -160,7 +160,7 @@ def rbf_cornell():
 
 
 def rbf_single():
-    """Cornell box with one large Gaussian RBF and one point light (papers/003, figure 4a)."""
+    """Cornell box with one large Gaussian RBF and one point light (Giroud & Biri 2011, figure 4a)."""
     return {
         "name": "rbf-single",
         "camera": _camera(),
@@ -173,7 +173,7 @@ def rbf_single():
 
 def rbf_thick_fog():
     """Cornell box filled with thick fog of 1000 RBFs, lit by eight coloured point lights
-    (papers/003, figure 4c)."""
+    (Giroud & Biri 2011, figure 4c)."""
     rng = np.random.default_rng(7)
     centers = rng.uniform(-0.85, 0.85, (1000, 3))
     colours = [[2, 1, 1], [1, 2, 1], [1, 1, 2], [2, 2, 1], [2, 1, 2], [1, 2, 2], [2, 2, 2], [1.5, 1.5, 1]]
@@ -191,7 +191,7 @@ def rbf_thick_fog():
 
 
 def particle_cloud():
-    """A cloud of 1024 overlapping spheres under the sun and a sky (papers/000 set-up)."""
+    """A cloud of 1024 overlapping spheres under the sun and a sky (Szirmay-Kalos et al. 2005 set-up)."""
     return {
         "name": "particle-cloud",
         "background": [0.25, 0.35, 0.55],
@@ -203,7 +203,7 @@ def particle_cloud():
 
 
 def colonnade_shafts():
-    """A fog-filled colonnade (65 660 triangles), one point light behind it, 800x600 (papers/001)."""
+    """A fog-filled colonnade (65 660 triangles), one point light behind it, 800x600 (Tóth & Umenhoffer 2009)."""
     return {
         "name": "colonnade-shafts",
         "camera": _camera(width=800, height=600, origin=(1.2, 1.4, 7.0), target=(0.0, 2.0, 0.0), fov_y=45.0),
@@ -216,7 +216,7 @@ def colonnade_shafts():
 
 def dusty_lamp():
     """A lamp in dusty air over a floor, a shade beside it casting a shadow through the dust
-    (papers/002's setting: glow and shafts through visible particles), 320x240."""
+    (the glowy-light paper's setting: glow and shafts through visible particles), 320x240."""
     return {
         "name": "dusty-lamp",
         "background": [0.0, 0.0, 0.0],

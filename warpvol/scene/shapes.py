@@ -140,7 +140,7 @@ def cylinder(base, radius: float, height: float, segments: int = 32, stacks: int
 
 def colonnade(center=(0.0, 0.0, 0.0), columns: int = 8, segments: int = 64, stacks: int = 64,
               diffuse=(0.7, 0.7, 0.7)):
-    """A temple front that throws light shafts (papers/001's kind of scene): a floor, a row of
+    """A temple front that throws light shafts (Tóth & Umenhoffer 2009's kind of scene): a floor, a row of
     ``columns`` fluted columns (cylinders of segments x stacks quads) under a lintel, and a back
     wall with a window grating of bars. With the defaults: 65 660 triangles.
 

@@ -1,6 +1,7 @@
 """Depth impostors: particle clouds built of blocks, light slices, objects inside clouds.
 
-papers/004 (8000 particles, one directional light, 8 FPS without blocks and 200 FPS with 40
+Umenhoffer & Szirmay-Kalos, "Real-Time Rendering of Cloudy Natural Phenomena with
+Hierarchical Depth Impostors", Eurographics 2005 short presentations (8000 particles, one directional light, 8 FPS without blocks and 200 FPS with 40
 blocks on a GeForce 6800 GT). A cloud of N particles is built of N / b copies (instances) of
 one block of b particles, so a frame renders the block once (b) and then its instances
 (N / b) instead of N particles. Single scattering of the scene's lights. Stages:
@@ -400,7 +401,7 @@ def morton_groups(positions: np.ndarray, size: int) -> list[np.ndarray]:
 
 
 class DepthImpostors(Technique):
-    """papers/004: depth impostors of particle blocks, light slices, objects in clouds."""
+    """Umenhoffer & Szirmay-Kalos 2005: depth impostors of particle blocks, light slices, objects in clouds."""
 
     NAME = NAME
     SETTINGS = SETTINGS

@@ -1,6 +1,7 @@
 """Illumination networks: multiple scattering in particle clouds by iterating on global lines.
 
-papers/000 (our copy gives neither title nor authors; 1024 particles, 128 directions, 26 FPS
+Szirmay-Kalos, Sbert, Umenhoffer, "Real-time Multiple Scattering in Participating Media with
+Illumination Networks", EGSR 2005 (1024 particles, 128 directions, 26 FPS
 on a GeForce 6800 GT). The cloud is N spheres; light is exchanged only along D sample
 directions, between particles that see each other along them. Stages:
 
@@ -21,7 +22,7 @@ directions, between particles that see each other along them. Stages:
   transmittance to the light through the union of spheres (overlaps add), averaged over
   ``light_samples`` points of the sphere: a thick particle is lit on its rim, not at its
   centre. The transmittance comes from the shared light pass (media/lightpass.py): the
-  cloud rendered once from each light into depth slices (``light_pass = 1``, as papers/004
+  cloud rendered once from each light into depth slices (``light_pass = 1``, as Umenhoffer & Szirmay-Kalos 2005
   does) or a Fourier opacity map (2), O(N x footprint) per light instead of every sphere
   against every light ray, and checked against the exact chord sums on 64 particles (the
   exact answer is used instead when the map is off by more than ``light_tolerance``);

@@ -1,7 +1,7 @@
 """Light shafts: shadow-mapped single scattering with interleaved sampling.
 
 Tóth & Umenhoffer, "Real-time Volumetric Lighting in Participating Media", Eurographics
-2009 short papers (papers/001). Per pixel, the radiance of the visible surface L0 is
+2009 short papers. Per pixel, the radiance of the visible surface L0 is
 attenuated to the camera and the in-scattered light of every light is added along the
 view ray (the paper's equation 1):
 

@@ -1,4 +1,4 @@
-"""Particle glow: glowing light through visible particles (papers/002).
+"""Particle glow: glowing light through visible particles (the glowy-light paper).
 
 The paper marches each view ray and adds, at every step, the light of a *nearby particle*
 to the light at the step, so that a lamp's glow and its shafts look grainy, "jittered
@@ -255,7 +255,7 @@ def direction_texture(res: int, seed: int) -> np.ndarray:
 
 
 class ParticleGlow(Technique):
-    """papers/002: a march with a nearby particle's light at every step (module docstring)."""
+    """the glowy-light paper: a march with a nearby particle's light at every step (module docstring)."""
 
     NAME = NAME
     SETTINGS = SETTINGS

@@ -1,6 +1,7 @@
 """RBF propagation: extinction volume, opacity propagation, ray march.
 
-papers/003 (our copy gives neither title nor authors; it builds on Kaplanyan 2009's light
+Giroud & Biri, "Illuminating and Rendering Heterogeneous Participating Media in Real Time
+Using Opacity Propagation", GRAPP 2011 (it builds on Kaplanyan 2009's light
 propagation volumes, 800x600 on a GTX 280): an RBF medium injected into an extinction
 volume (EV), optical depth propagated from each light through it into an opacity
 propagation volume (OPV) by a 6-neighbour gathering wavefront (equations 6-7), and a
