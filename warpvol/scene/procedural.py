@@ -120,6 +120,21 @@ def fog_box():
     }
 
 
+def hazy_sun():
+    """Thin haze over a floor under the sun and a blue sky, a pillar casting a shaft: the
+    first render (``python -m warpvol demo``), where single scattering is most of the light."""
+    return {
+        "name": "hazy-sun",
+        "background": [0.12, 0.18, 0.32],
+        "camera": _camera(origin=(0.0, 0.6, 4.2), target=(0.0, -0.1, 0.0), fov_y=45.0),
+        "lights": [{"type": "directional", "direction": [-0.5, -1.0, -0.3], "irradiance": [3.0, 2.8, 2.4]}],
+        "media": [{"type": "homogeneous", "shape": "box", "center": [0, 0, 0], "size": [3.0, 2.0, 3.0],
+                   "sigma_t": [0.25, 0.32, 0.45], "albedo": 0.8, "phase": {"type": "hg", "g": 0.5}}],
+        "surfaces": [{"type": "plane", "center": [0, -1.0, 0], "normal": [0, 1, 0], "size": [8.0, 8.0], "diffuse": 0.5},
+                     {"type": "box", "center": [0.45, 0.2, -0.3], "size": [0.35, 2.4, 0.35], "diffuse": 0.6}],
+    }
+
+
 def point_in_fog():
     """A point light in fog that fills everything (the Sun et al. 2005 airlight set-up)."""
     return {
@@ -304,6 +319,7 @@ def random_cloud(seed: int) -> dict:
 
 
 BUILTIN = {
+    "hazy-sun": hazy_sun,
     "fog-box": fog_box,
     "point-in-fog": point_in_fog,
     "smoke-grid": smoke_grid,
