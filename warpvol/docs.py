@@ -66,8 +66,16 @@ def target_error_table() -> str:
 
 
 def technique_block(name: str) -> str:
+    """A technique page's generated part: its module's docstring (what is implemented and
+    where it departs from its paper), its settings and what target_error does with them."""
+    import inspect
+    import sys
+
     ladder, biases, held = quality_row(name)
-    return "\n".join(["### Settings", "", settings_table(name), "", "### target_error", "",
+    module = sys.modules[technique_class(name).__module__]
+    return "\n".join(["## Implementation", "", "From the module's docstring (`" + module.__name__ + "`):", "",
+                      "```text", inspect.cleandoc(module.__doc__ or ""), "```", "",
+                      "## Settings", "", settings_table(name), "", "## target_error", "",
                       f"- ladder: {ladder}", f"- biases measured at the level found, then taken to their limit "
                       f"where they are the larger part: {biases}", f"- held: {held}",
                       f"- leaves out (against the physical answer): "
