@@ -470,7 +470,7 @@ def _network_frame(params: dict, device: str, quick: bool) -> dict:
     gflops = 2.0 * 3 * n * D * D / it / 1e9
     peak = peak_gflops(device)
     row.update(iteration_ms=it * 1000.0, gflops=gflops, peak_gflops=peak,
-               peak_fraction=gflops / peak if peak else None, window=t.M,
+               peak_fraction=gflops / peak if peak else None, window=r.diagnostics()["window"],
                network_ms=sorted(builds)[len(builds) // 2],
                scene=f"{n} particles, {scene.camera.width}x{scene.camera.height}, 2 suns + sky")
     return row
@@ -541,8 +541,8 @@ def _network_accuracy(params: dict, device: str, quick: bool) -> dict:
     r = wv.Renderer(scene, technique="illumination_network", device=device, iterations=2000, tolerance=1e-5,
                     directions=params["directions"], window=params["window"])
     row = time_frames(r, repeats=1 if quick else 2, invalidate=("lights",))
-    row["window_used"] = r.technique.M
-    row["iterations_to_converge"] = len(r.technique.history)
+    row["window_used"] = r.diagnostics()["window"]
+    row["iterations_to_converge"] = r.diagnostics()["iterations"]
     ref = score(row, scene, device, 16 if quick else 128, max_bounces=-1)
     row["mean_ratio"] = float(row["frame"].image.mean() / ref.mean())
     row["scene"] = f"{params['particles']} particles {w}x{w}"
@@ -571,7 +571,7 @@ def _lightpass_truth(scene, device: str, quick: bool):
         r = wv.Renderer(scene, technique="illumination_network", device=device, iterations=2000, tolerance=1e-5,
                         light_pass=0, light_samples=64 if quick else 256, light_tolerance=0.0)
         image = r.render().image
-        _LIGHTPASS_TRUTH[key] = (r.technique.direct.numpy().astype(np.float64), image)
+        _LIGHTPASS_TRUTH[key] = (r.diagnostics()["direct"].astype(np.float64), image)
     return _LIGHTPASS_TRUTH[key]
 
 
@@ -587,10 +587,10 @@ def _lightpass_accuracy(params: dict, device: str, quick: bool) -> dict:
                     **settings)
     row = time_frames(r, repeats=2 if quick else 5, invalidate=("lights",))
     truth, truth_image = _lightpass_truth(scene, device, quick)
-    direct = r.technique.direct.numpy().astype(np.float64)
+    direct = r.diagnostics()["direct"].astype(np.float64)
     row["direct_rel_rmse"] = float(np.sqrt(np.sum((direct - truth) ** 2) / np.sum(truth**2)))
     row["direct_ms"] = row["stages"]["direct"]["median_ms"]
-    row["texels"] = r.technique.light_pass.M
+    row["texels"] = r.diagnostics()["light_texels"]
     image = row["frame"].image
     row["image_move"] = wv.relative_rmse(image, truth_image)
     score(row, scene, device, 16 if quick else 128, max_bounces=-1)
@@ -732,9 +732,9 @@ def _impostor_frame(params: dict, device: str, quick: bool) -> dict:
     scene = impostor_scene(quick, n, per_block, params.get("width", 512))
     r = wv.Renderer(scene, technique="depth_impostors", device=device)
     row = time_frames(r, repeats=2 if quick else 8, invalidate=("medium", "lights"))
-    t = r.technique
-    row.update(instances=t.n_instances, per_block=per_block, light_texels=t.light_pass.M,
-               scene=f"{len(scene.media[0].positions)} particles, {t.n_instances} instances of {per_block}, "
+    d = r.diagnostics()
+    row.update(instances=d["instances"], per_block=per_block, light_texels=d["light_texels"],
+               scene=f"{len(scene.media[0].positions)} particles, {d['instances']} instances of {per_block}, "
                      f"{scene.camera.width}x{scene.camera.height}, one sun")
     return row
 
@@ -829,7 +829,7 @@ def _impostor_objects(params: dict, device: str, quick: bool) -> dict:
     row = time_frames(r, repeats=2 if quick else 5, invalidate=("medium", "lights"))
     ref = score(row, scene, device, 16 if quick else 256)
     image = row["frame"].image
-    band = _plane_in_blocks(scene, r.technique.blocks.centre.numpy(), r.technique.blocks.reach.numpy())
+    band = _plane_in_blocks(scene, r.diagnostics()["block_centres"], r.diagnostics()["block_reach"])
     row["band_pixels"] = int(band.sum())
     row["rel_rmse_band"] = wv.relative_rmse(image[band], ref[band]) if band.any() else float("nan")
     row["scene"] = (f"{n} particles in {n // b} blocks of {b}, a plane through the cloud, {w}x{w}; band: the "
@@ -864,7 +864,7 @@ def _glow_figure5(params: dict, device: str, quick: bool) -> dict:
     row = time_frames(r, repeats=2 if quick else 3, invalidate=("camera",))
     plain = wv.render(scene, technique="particle_glow", device=device, glow=0, **settings).image
     image = row["frame"].image
-    row["table"] = {"mean density d": float(r.technique.density.numpy().mean()),
+    row["table"] = {"mean density d": float(r.diagnostics()["density"].mean()),
                     "image mean": float(image.mean()),
                     "light the glow adds": f"{image.mean() / plain.mean() - 1:+.1%}"}
     row["images"] = {"image": image}
@@ -1158,7 +1158,7 @@ def _speed(params: dict, device: str, quick: bool) -> dict:
     start = time.perf_counter()
     frame = r.render()
     seconds = time.perf_counter() - start
-    grey = r.technique.uploads.media.grey  # the reference's own rule for one launch or three
+    grey = r.diagnostics()["grey"]  # the reference's own rule for one launch or three
     paths = width * height * params["spp"] * (1 if grey else 3)
     cores = dev.threads() if device == "cpu" else 1
     row = {"frames": 1, "first_frame_ms": first_ms, "median_ms": 1000.0 * seconds, "seconds": seconds,

@@ -35,3 +35,32 @@ def test_bench_and_viz_import_as_warpvol_subpackages():
 
     assert warpvol.bench.sweeps.SWEEPS
     assert importlib.util.find_spec("warpvol.viz") is not None
+
+
+def test_bench_and_viz_read_techniques_through_their_public_api():
+    """bench/ and viz/ read a technique's state through ``Renderer.diagnostics()`` and
+    ``arrays()``, and call its public methods: no attribute of a technique object is read
+    (but its class constants), and no private attribute of anything but their own objects."""
+    import ast
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    allowed = {"NAME", "SETTINGS", "QUALITY", "LEAVES_OUT", "device", "settings", "scene"}
+    hits = []
+    for path in sorted([*root.joinpath("bench").glob("*.py"), *root.joinpath("viz").glob("*.py")]):
+        tree = ast.parse(path.read_text())
+        holders = {t.id for node in ast.walk(tree) if isinstance(node, ast.Assign)
+                   and isinstance(node.value, ast.Attribute) and node.value.attr == "technique"
+                   for t in node.targets if isinstance(t, ast.Name)}
+        called = {id(node.func) for node in ast.walk(tree) if isinstance(node, ast.Call)}
+        for node in ast.walk(tree):
+            if not isinstance(node, ast.Attribute):
+                continue
+            on_technique = (isinstance(node.value, ast.Attribute) and node.value.attr == "technique") or (
+                isinstance(node.value, ast.Name) and node.value.id in holders)
+            if on_technique and id(node) not in called and node.attr not in allowed:
+                hits.append(f"{path.name}:{node.lineno}: .{node.attr} of a technique")
+            private = node.attr.startswith("_") and not node.attr.startswith("__")
+            if private and not (isinstance(node.value, ast.Name) and node.value.id in ("self", "cls")):
+                hits.append(f"{path.name}:{node.lineno}: private .{node.attr}")
+    assert not hits, hits

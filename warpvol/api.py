@@ -109,6 +109,10 @@ class Renderer:
         ``for_view`` and ``resolution``: see ``Technique.arrays``."""
         return self._technique.arrays(for_view=for_view, resolution=resolution)
 
+    def diagnostics(self) -> dict:
+        """The technique's named figures of the last frame (``Technique.diagnostics``)."""
+        return self._technique.diagnostics()
+
     def run_stage(self, name: str) -> float:
         """Run one stage of the technique again after a ``render()``, with its inputs as the last
         frame left them, and return its device-synchronised time in ms: how benchmarks time one

@@ -196,6 +196,12 @@ class Technique:
         only to be looked at (light_shafts' lit slice). Every technique takes both."""
         return {}
 
+    def diagnostics(self) -> dict:
+        """Named figures of the last frame a benchmark reports beside the image (e.g. the
+        window illumination_network used), as plain numbers or numpy arrays; each technique
+        documents its own. The public way for bench/ and viz/ to read a technique's state."""
+        return {}
+
 
 class Frame:
     """A rendered image (H x W x 3 float32, linear RGB, row 0 at the top) and what it cost.

@@ -637,6 +637,14 @@ class DepthImpostors(Technique):
     def output(self):
         return self.image
 
+    def diagnostics(self) -> dict:
+        """``instances``: how many block instances; ``block_centres`` (instances x 3) and
+        ``block_reach`` (instances): each one's centre and bounding radius, world units;
+        ``light_texels``: the light pass's texels per face side (0 before it is built)."""
+        return {"instances": self.n_instances, "block_centres": self.blocks.centre.numpy(),
+                "block_reach": self.blocks.reach.numpy(),
+                "light_texels": self.light_pass.M if self.light_pass is not None else 0}
+
     def arrays(self, for_view: bool = False, resolution: int = 128) -> dict:
         """The instances (centres, bounding radii), the first textured template's impostor
         layers (opacity, front and back depth; T x T) with the frame they face and the

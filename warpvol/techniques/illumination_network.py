@@ -743,6 +743,13 @@ class IlluminationNetwork(Technique):
         host[: 3 * n, :D] = np.moveaxis(np.asarray(radiance, np.float32), -1, 1).reshape(3 * n, D) / self.scale
         self.I.assign(host)
 
+    def diagnostics(self) -> dict:
+        """``window``: the window resolution M used; ``iterations``: iterations the last frames
+        took (the convergence history's length); ``direct``: the direct light per particle
+        (N x lights x 3); ``light_texels``: the light pass's texels per face side."""
+        return {"window": self.M, "iterations": len(self.history), "direct": self.direct.numpy(),
+                "light_texels": self.light_pass.M if self.light_pass is not None else 0}
+
     def arrays(self, for_view: bool = False, resolution: int = 128) -> dict:
         """``positions`` (N, 3), ``directions`` (D, 3), ``visibility`` (N, D) int (-1: sky),
         ``alpha`` (N, D, 3) (vp's segment opacity), ``radiance`` (N, D, 3) (the network I),

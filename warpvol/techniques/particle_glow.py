@@ -323,6 +323,10 @@ class ParticleGlow(Technique):
         dev.launch(march_glow, npix, [camera_view(pinhole(scene.camera)), u.media.struct, u.surfaces, self.sl,
                                       self.glow_struct(), wp.vec3(*scene.background), self.image], self.device)
 
+    def diagnostics(self) -> dict:
+        """``density``: the particle-density texture d (texels), as sampled by the march."""
+        return {"density": self.density.numpy()}
+
     def output(self):
         return self.image
 

@@ -405,6 +405,11 @@ class Reference(Technique):
                        work=st.spp / st.slots, min_split=SPLIT_PATHS)
         self.image = (accum.numpy().reshape(slots, npix, 3).sum(0) / spp).astype(np.float32)
 
+    def diagnostics(self) -> dict:
+        """``grey``: whether the media are grey (one launch for all three channels; else one a
+        channel, three times the paths)."""
+        return {"grey": bool(self.uploads.media.grey)}
+
     def output(self):
         return self.image
 
