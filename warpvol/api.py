@@ -417,27 +417,26 @@ def render(scene, technique: str = "reference", device: str | None = None, progr
     finished: an iterative technique (illumination_network) iterates until it converges
     (a ``Renderer`` runs its per-frame iterations instead).
 
-    ``target_error`` (0..1): the relative RMSE (``metrics.relative_rmse``) the image may have
-    against the technique's own converged answer (its discretisation, not its model: see
-    ``frame.leaves_out``). The technique's quality knob (``Technique.QUALITY``: raymarch,
+    ``target_error`` (0..1): the relative RMSE (``metrics.relative_rmse``: RMSE over the
+    reference's mean, the same at any exposure) the image may have against the technique's own
+    converged answer, every discretisation setting at its limit (its model's omissions are
+    ``frame.leaves_out``). The technique's ``Quality`` says how: its knob (raymarch,
     light_shafts and particle_glow steps, rbf_propagation grid, depth_impostors slices,
-    illumination_network directions, reference spp) is doubled from its start. At the first
-    level whose error, extrapolated from the last three (``remaining_error``: geometric
-    convergence by the observed ratio r of successive differences, Richardson for the part of
-    the error that keeps its shape from level to level, and a second term for the part that
-    does not), meets the target, one more level is rendered and that level's error measured
-    against it (``measured_error``); if that meets the target too, the level is returned with
-    the measured error, else the doubling goes on. The finer level is not returned: only its
-    extrapolated error would be known, and extrapolation is off by more than 2x on a quarter
-    of random scenes (an error that stands still for a doubling, then falls 5-20x), where the
-    measured one is within 2x on 69 of 70 (``results/target-error``). The check costs one
-    level more than extrapolation alone: 1.6-2.3x the time where the knob is one-dimensional
-    (steps, slices, directions), 8x for rbf_propagation's grid (cells grow as its cube).
-    Where a seed gives independent answers
-    of one quality (``Technique.QUALITY_SEED``) each level is the mean of two seeds and their
-    standard error is part of the estimate (illumination_network: turned direction sets, the
-    window held at the default D's); for the reference, unbiased, it is the whole estimate.
-    ``frame.error_estimate`` holds it; above the target at the knob's limit, a warning.
+    illumination_network directions, reference spp) doubles from its start with the settings
+    tied to it. At the first level whose error, extrapolated from the last three
+    (``remaining_error``), meets the target, one more level is rendered and that level's error
+    measured against it (``measured_error``); if that meets the target too, the ladder stops
+    there, else it goes on. Then each ``Bias`` setting (light_shafts' block, shadow-map and
+    light-pass resolutions, sky directions, illumination_network's window) is rendered at its
+    limit at that level and its bias measured (``bias_error``); the estimate is the ladder's
+    error and the biases added in quadrature. A bias above half the target (or one that leaves
+    the ladder too little) is taken to its limit and the ladder runs again, up to
+    ``MAX_ROUNDS`` times. Where a seed gives independent answers of one quality
+    (``Technique.QUALITY_SEED``) each level is the mean of two seeds and their standard error is
+    part of the estimate; for the reference, unbiased, it is the whole estimate.
+    ``frame.error_estimate`` holds the estimate, ``frame.bias_estimates`` each bias measured,
+    ``frame.moved_to_limit`` the settings taken to their limit; above the target at the knob's
+    limit, a warning. How well it holds: results/target-error.
 
     ``technique="auto"`` (with ``target_error``, against the physical answer, all orders of
     scattering): the fastest technique whose measured error on the scene's family meets it
