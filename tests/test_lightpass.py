@@ -180,3 +180,25 @@ def test_light_at_a_particle_centre_stays_finite(device):
             d, w = direct.numpy(), travel.numpy()
             assert np.all(np.isfinite(d)) and np.all(d >= 0)
             assert np.all(w[7] == 0) and d[7, 0] == pytest.approx(3.0 / RADIUS**2, rel=1e-5)  # ball mean of 1/d^2
+
+
+def test_a_map_above_its_tolerance_is_refined_before_it_falls_back(device):
+    """A coarse map (4 slices, 8 texels) whose error is above a tolerance the finer maps meet
+    is refined (texels and slices doubled) until the check passes, not replaced by exact; its
+    error falls with each refinement (the map converges to the chord sums: slices exact at
+    their depths, texels at their centres). A tolerance no map within REFINE_ROUNDS meets
+    still ends at exact."""
+    from warpvol.media.lightpass import REFINE_ROUNDS
+
+    centres, cloud, lights, kind, where = setup("sun", device)
+    coarse = LightPass(device, "slices", slices=4, texels=8, check_particles=len(centres))
+    coarse.build(cloud, lights, samples=4)
+    e0 = coarse.check(cloud, lights, 4)
+    lp = LightPass(device, "slices", slices=4, texels=8, tolerance=0.6 * e0, check_particles=len(centres))
+    lp.build(cloud, lights, samples=4)
+    assert lp.refined and not lp.fell_back and lp.error <= 0.6 * e0 and lp.M > 8 and lp.map.C > 5
+    errors = [e for _, _, e in lp.refined] + [lp.error]
+    assert all(b < a for a, b in zip(errors, errors[1:])), errors
+    strict = LightPass(device, "slices", slices=4, texels=8, tolerance=1e-9, check_particles=len(centres))
+    strict.build(cloud, lights, samples=4)
+    assert strict.fell_back and len(strict.refined) == REFINE_ROUNDS

@@ -143,14 +143,17 @@ def launch(kernel, dim: int, inputs: list, device: str, split: bool = True, min_
     _run_chunks(kernel, device, n, [chunk(k) for k in range(chunks) if bounds[k + 1] > bounds[k]])
 
 
-def launch_private(kernel, dim: int, inputs: list, out, merge, device: str):
+def launch_private(kernel, dim: int, inputs: list, out, merge, device: str, work: float | None = None):
     """Launch ``kernel`` (arguments: offset, *inputs, out) over ``dim`` threads that combine their
     results into ``out`` with atomics, ``out`` holding the combination's identity beforehand.
     Warp's CPU atomics are not atomic across threads, so on the CPU each core takes its share of
     the threads (interleaved chunks) into a private copy of ``out``, and the copies are folded
-    into ``out`` by the elementwise ``merge(offset, copy, out)``. CUDA runs one launch."""
+    into ``out`` by the elementwise ``merge(offset, copy, out)``. CUDA runs one launch.
+    ``work``: the elements of ``out`` a thread touches on average; where the threads' work,
+    dim x work, is less than the copies cost (every extra copy cleared and merged), one core
+    runs it all instead."""
     n = threads() if str(device) == "cpu" else 1
-    if n <= 1 or dim < MIN_SPLIT // 8:
+    if n <= 1 or dim < MIN_SPLIT // 8 or (work is not None and dim * work < out.shape[0] * (n - 1)):
         wp.launch(kernel, dim=dim, inputs=[0, *inputs, out], device=device)
         return
     copies = [out] + [wp.clone(out) for _ in range(n - 1)]

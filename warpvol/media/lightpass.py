@@ -58,6 +58,7 @@ REPRESENTATIONS = ("exact", "slices", "fourier")
 MAX_TEXELS = 1024  # texels per face side, at most
 MIN_TEXELS = 64  # and by the rule at least
 MAX_BYTES = 128 << 20  # one map's texels at most (a CPU build holds one copy per core)
+REFINE_ROUNDS = 3  # a map above its tolerance is refined at most this many times before the exact fallback
 
 
 @wp.struct
@@ -453,7 +454,10 @@ class LightPass:
     ``MAX_TEXELS``; either way no more than fits ``MAX_BYTES`` (faces x M^2 x C values).
     ``tolerance`` > 0: after a build, ``check`` measures the map against the exact answer on
     up to ``check_particles`` particles (at the same ``samples`` points of each as the render
-    reads) and, above the tolerance, falls back to exact.
+    reads); above the tolerance the map is refined (texels per side and slices or terms
+    doubled, or the texels alone where both do not fit) up to ``REFINE_ROUNDS`` times within ``MAX_BYTES``, and only
+    then falls back to exact. ``refined`` lists each rejected map's (M, C, error), ``error``
+    is the last map's and ``fell_back`` says whether exact was taken.
     """
 
     def __init__(self, device, representation: str = "slices", slices: int = 16, terms: int = 8, texels: int = 0,
@@ -468,6 +472,8 @@ class LightPass:
         self.M = 0
         self.error: float | None = None  # relative RMSE of the last check
         self.fell_back = False
+        self.refined: list[tuple[int, int, float]] = []  # (M, C, error) of each map refined away
+        self.checked: np.ndarray | None = None  # the exact transmittances the last check compared with
         self._data = None
 
     def build(self, cloud: ParticleBuffers, lights: wp.array, samples: int = 4) -> LightMap:
@@ -476,8 +482,6 @@ class LightPass:
         if (kind == EXACT or self.tolerance > 0.0) and cloud.struct.centres.shape[0] and cloud.bvh is None:
             raise ValueError("the exact light pass (and a map's check against it) needs the cloud's BVH "
                              "(ParticleBuffers(..., bvh=True))")
-        m = LightMap()
-        m.kind = kind
         n = cloud.struct.centres.shape[0]
         infos = lights.numpy() if lights.shape[0] else []
         radius = cloud.radius if n else np.ones(1, np.float32)
@@ -509,6 +513,31 @@ class LightPass:
             face_count.append(len(faces) - first_face[-1])
         if kind != EXACT and faces:  # the memory bound: F M^2 C vec3 of 12 bytes
             M = max(1, min(M, int(np.sqrt(MAX_BYTES / (12.0 * C * len(faces))))))
+        self.error, self.fell_back, self.refined = None, False, []
+        m = self._splat(cloud, kind, faces, first_face, face_count, M, C)
+        if kind != EXACT and self.tolerance > 0.0 and n and len(faces):
+            self.error = self.check(cloud, lights, samples)
+            # above the tolerance: refine (texels per side and slices or terms doubled) while the
+            # map fits MAX_BYTES, up to REFINE_ROUNDS times; only then fall back to exact
+            while self.error > self.tolerance and len(self.refined) < REFINE_ROUNDS:
+                finer = [(2 * M, 2 * C - 1), (2 * M, C)]  # texels and slices (or terms) doubled, else texels
+                fits = [(m2, c2) for m2, c2 in finer if m2 <= MAX_TEXELS and 12.0 * c2 * len(faces) * m2 * m2 <= MAX_BYTES]
+                if not fits:
+                    break
+                self.refined.append((M, C, self.error))
+                M, C = fits[0]
+                m = self._splat(cloud, kind, faces, first_face, face_count, M, C)
+                self.error = self.check(cloud, lights, samples, self.checked)  # the exact side computed once
+            if self.error > self.tolerance:
+                self.fell_back = True
+                m.kind = EXACT
+        return m
+
+    def _splat(self, cloud: ParticleBuffers, kind: int, faces: list, first_face: list, face_count: list, M: int,
+               C: int) -> LightMap:
+        """The map of ``faces`` at M texels a side and C values a texel, splatted from ``cloud``."""
+        m = LightMap()
+        m.kind = kind
         structs = []
         for k, (o, fwd, right, up, half, near, far, ortho) in enumerate(faces):
             s = LightFace()
@@ -521,23 +550,20 @@ class LightPass:
         m.first_face = wp.array(np.asarray(first_face or [0], np.int32), dtype=int, device=dev_)
         m.face_count = wp.array(np.asarray(face_count or [0], np.int32), dtype=int, device=dev_)
         texels = len(faces) * M * M
+        n = cloud.struct.centres.shape[0]
         if kind == EXACT or not texels:
             self._data = wp.zeros(1, dtype=wp.vec3, device=dev_)
         else:
             self._data = wp.zeros(texels * C, dtype=wp.vec3, device=dev_)
             m.data = self._data
             if n:
-                dev.launch_private(splat_spheres, n * len(faces), [cloud.struct, m], self._data, merge_maps, dev_)
+                footprint = (M * float(np.median(cloud.radius)) / max(float(cloud.R), 1e-9)) ** 2  # texels a sphere covers
+                dev.launch_private(splat_spheres, n * len(faces), [cloud.struct, m], self._data, merge_maps, dev_,
+                                   work=C * max(1.0, footprint))
             if kind == SLICES:
                 dev.launch(accumulate_slices, texels, [C, self._data], dev_)
         m.data = self._data
         self.M, self.map = (M if kind != EXACT else 0), m
-        self.error, self.fell_back = None, False
-        if kind != EXACT and self.tolerance > 0.0 and n and len(faces):
-            self.error = self.check(cloud, lights, samples)
-            if self.error > self.tolerance:
-                self.fell_back = True
-                m.kind = EXACT
         return m
 
     def exact(self) -> LightMap:
@@ -547,15 +573,18 @@ class LightPass:
         m.faces, m.first_face, m.face_count, m.data = self.map.faces, self.map.first_face, self.map.face_count, self._data
         return m
 
-    def check(self, cloud: ParticleBuffers, lights: wp.array, samples: int) -> float:
+    def check(self, cloud: ParticleBuffers, lights: wp.array, samples: int, want: np.ndarray | None = None) -> float:
         """Relative RMSE, sqrt(sum (T_map - T)^2 / sum T^2), of the sphere-averaged
         transmittance over up to ``check_particles`` particles (evenly strided) and every
-        light, the map against the exact chord sums at the same ``samples`` points."""
+        light, the map against the exact chord sums at the same ``samples`` points (``want``:
+        those exact values, where already computed; ``self.checked`` keeps the last)."""
         n = cloud.struct.centres.shape[0]
         which = np.unique(np.linspace(0, n - 1, min(n, self.check_particles)).astype(np.int32))
         idx = wp.array(which, dtype=int, device=self.device)
         got = self.transmittance(cloud, lights, samples, idx, self.map)
-        want = self.transmittance(cloud, lights, samples, idx, self.exact())
+        if want is None:
+            want = self.transmittance(cloud, lights, samples, idx, self.exact())
+        self.checked = want
         return float(np.sqrt(np.sum((got - want) ** 2) / max(np.sum(want**2), 1e-30)))
 
     def transmittance(self, cloud: ParticleBuffers, lights: wp.array, samples: int, which: wp.array,

@@ -640,10 +640,14 @@ class DepthImpostors(Technique):
     def diagnostics(self) -> dict:
         """``instances``: how many block instances; ``block_centres`` (instances x 3) and
         ``block_reach`` (instances): each one's centre and bounding radius, world units;
-        ``light_texels``: the light pass's texels per face side (0 before it is built)."""
+        ``light_texels``: the light pass's texels per face side (0 before it is built);
+        ``light_refined``: how often its map was refined to meet its tolerance;
+        ``light_fell_back``: whether it fell back to exact transmittance."""
         return {"instances": self.n_instances, "block_centres": self.blocks.centre.numpy(),
                 "block_reach": self.blocks.reach.numpy(),
-                "light_texels": self.light_pass.M if self.light_pass is not None else 0}
+                "light_texels": self.light_pass.M if self.light_pass is not None else 0,
+                "light_refined": len(self.light_pass.refined) if self.light_pass is not None else 0,
+                "light_fell_back": bool(self.light_pass is not None and self.light_pass.fell_back)}
 
     def arrays(self, for_view: bool = False, resolution: int = 128) -> dict:
         """The instances (centres, bounding radii), the first textured template's impostor
