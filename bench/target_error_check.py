@@ -22,7 +22,8 @@ from warpvol.scene.procedural import brightened, random_cloud, random_scene
 
 from .harness import device_name, git_commit
 
-# technique: (target, scenes, the truth's settings: every discretisation setting at its limit, what the truth is)
+# technique: (target, scenes, the truth's settings (or a function of the frame giving them): every
+# discretisation setting at its limit, what the truth is)
 CASES = {
     "raymarch": (0.01, "random_scene", [{"steps": 1024, "shadow_steps": 1024, "sky_samples": 1024}],
                  "1024 steps and shadow steps, 1024 sky directions"),
@@ -34,10 +35,13 @@ CASES = {
     "depth_impostors": (0.02, "random_cloud", [{"light_pass": 0, "impostor_res": 128, "light_samples": 1024,
                                                 "sky_samples": 256}],
                         "exact light pass, 128-texel impostors, 1024 light samples, 256 sky directions"),
-    "illumination_network": (0.03, "random_cloud", [{"directions": 1024, "direction_seed": k, "window": 256,
+    "illumination_network": (0.03, "random_cloud", [{"directions": 1024, "direction_seed": k, "window_at": 128,
                                                      "light_pass": 0, "light_samples": 1024} for k in (3, 4)],
-                             "two turned sets of 1024 directions, window 256, exact light pass, 1024 light samples"),
-    "reference": (0.03, "random_scene", [{"spp": 8192, "seed": k} for k in (3, 4)], "2 x 8192 spp"),
+                             "two turned sets of 1024 directions (the window held at D = 128's), exact light pass, "
+                             "1024 light samples"),
+    # the truth's noise must be well under the frame's: at least 4x the frame's samples in each half
+    "reference": (0.03, "random_scene", lambda frame: [{"spp": max(8192, 4 * frame.settings["spp"]), "seed": k}
+                                                       for k in (3, 4)], "2 x max(8192, 4 x the frame's) spp"),
 }
 
 #: Scene seeds start here by default: far from the seeds (0-29) the rules were chosen on.
@@ -134,7 +138,8 @@ def main(argv=None) -> None:
                     print(f"{technique} {kind}({seed}): {e}")
                     continue
                 seconds = time.perf_counter() - t
-                fines = [wv.render(scene, technique, device="cpu", **f).image.astype(np.float64) for f in fine]
+                fines = [wv.render(scene, technique, device="cpu", **f).image.astype(np.float64)
+                         for f in (fine(frame) if callable(fine) else fine)]
             truth_image = np.mean(fines, axis=0)
             # a truth of two seeds has noise of its own (the reference at 2 x 8192 spp can be noisier than the
             # frame): measured from their spread as target_error measures a level's, taken out in quadrature

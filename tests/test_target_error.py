@@ -129,20 +129,20 @@ def test_light_shafts_meets_its_target_on_random_scenes():
 def test_illumination_network_meets_its_target_on_random_clouds():
     """Its converged answer: directions D -> infinity (each level averages two randomly turned
     Fibonacci sets, direction_seed 1 and 2: their spread is the random part, successive levels
-    the systematic part, order 1 in D), the window at 256 (the image mean settles there: within
-    0.03% of M = 128 on random clouds 5000-5001) and the exact light pass. The window and the
-    light pass are measured as biases at the level found and taken to their limit where they are
-    the larger part. The truth: two other turned sets of 1024 directions at those limits, their
-    own spread taken out in quadrature. At target 0.03 the truth meets it, and the estimate is
-    within 2x of the truth, in at least 90% of the clouds."""
+    the systematic part, order 1 in D), the light pass exact and its light samples many. The
+    window is the model's (it has no limit that keeps the network's links) and is held at the
+    default D's (window_at = 128). The light pass is measured as a bias at the level found and
+    taken to its limit where it is the larger part. The truth: two other turned sets of 1024
+    directions at those limits, their own spread taken out in quadrature. At target 0.03 the
+    truth meets it, and the estimate is within 2x of the truth, in at least 90% of the clouds."""
     met = within = 0
     for seed in range(4):
         scene = random_cloud(seed)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
             frame = wv.render(scene, "illumination_network", device="cpu", target_error=0.03)
-        assert frame.settings["direction_seed"] == "1 and 2, averaged"
-        fine = [wv.render(scene, "illumination_network", device="cpu", directions=1024, direction_seed=k, window=256,
+        assert frame.settings["direction_seed"] == "1 and 2, averaged" and frame.settings["window_at"] == 128
+        fine = [wv.render(scene, "illumination_network", device="cpu", directions=1024, direction_seed=k, window_at=128,
                           light_pass=0, light_samples=1024).image.astype(np.float64) for k in (3, 4)]
         mean = 0.5 * (fine[0] + fine[1])
         noise = wv.relative_rmse(mean + 0.5 * np.abs(fine[0] - fine[1]), mean)

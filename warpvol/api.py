@@ -427,7 +427,7 @@ def render(scene, technique: str = "reference", device: str | None = None, progr
     (``remaining_error``), meets the target, one more level is rendered and that level's error
     measured against it (``measured_error``); if that meets the target too, the ladder stops
     there, else it goes on. Then each ``Bias`` setting (light_shafts' block, shadow-map and
-    light-pass resolutions, sky directions, illumination_network's window) is rendered at its
+    light-pass resolutions, sky directions) is rendered at its
     limit at that level and its bias measured (``bias_error``); the estimate is the ladder's
     error and the biases added in quadrature. A bias above half the target (or one that leaves
     the ladder too little) is taken to its limit and the ladder runs again, up to
