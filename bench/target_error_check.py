@@ -35,9 +35,9 @@ CASES = {
     "depth_impostors": (0.02, "random_cloud", [{"light_pass": 0, "impostor_res": 128, "light_samples": 1024,
                                                 "sky_samples": 256}],
                         "exact light pass, 128-texel impostors, 1024 light samples, 256 sky directions"),
-    "illumination_network": (0.03, "random_cloud", [{"directions": 1024, "direction_seed": k, "window_at": 128,
+    "illumination_network": (0.03, "random_cloud", [{"directions": 4096, "direction_seed": k, "window_at": 128,
                                                      "light_pass": 0, "light_samples": 1024} for k in (3, 4)],
-                             "two turned sets of 1024 directions (the window held at D = 128's), exact light pass, "
+                             "two turned sets of 4096 directions (the window held at D = 128's), exact light pass, "
                              "1024 light samples"),
     # the truth's noise must be well under the frame's: at least 4x the frame's samples in each half
     "reference": (0.03, "random_scene", lambda frame: [{"spp": max(8192, 4 * frame.settings["spp"]), "seed": k}
@@ -69,10 +69,19 @@ def check_scene(kind: str, seed: int) -> tuple[dict, float]:
     return scene, k
 
 
-def write(args, ap, out: Path, path: Path, rows: list) -> None:
-    """data.json and README.md of the rows so far."""
+def command_of(args, ap) -> str:
+    """The command line that measures what ``args`` asks for."""
     command = "PYTHONPATH=. .venv/bin/python -m bench.target_error_check"
-    for key in ("first", "out"):  # the options that change which scenes or where they go
+    for key in ("scenes", "first", "out"):  # the options that change which scenes or where they go
+        if getattr(args, key) != ap.get_default(key):
+            command += f" --{key} {getattr(args, key)}"
+    return command + (f" --only {' '.join(args.only)}" if args.only else "")
+
+
+def write(args, ap, out: Path, path: Path, rows: list) -> None:
+    """data.json and README.md of the rows so far (each row names the command that measured it)."""
+    command = "PYTHONPATH=. .venv/bin/python -m bench.target_error_check"
+    for key in ("first", "out"):
         if getattr(args, key) != ap.get_default(key):
             command += f" --{key} {getattr(args, key)}"
     doc = {"command": command, "device": device_name("cpu"),
@@ -82,7 +91,10 @@ def write(args, ap, out: Path, path: Path, rows: list) -> None:
     lines = ["# target_error on seeded random scenes", "",
              f"Measured by `{doc['command']}` on {doc['device']} (Warp {doc['warp']}, commit {doc['commit']}, "
              f"{doc['measured']}); data: [data.json](data.json).", "",
-             f"Each technique renders seeded random scenes, seeds {args.first} to {args.first + args.scenes - 1} "
+             *[f"Rows of {', '.join(sorted({r['technique'] for r in rows if r.get('command') == c}))} re-measured by "
+               f"`{c}`." for c in sorted({r["command"] for r in rows if r.get("command")}) if c != doc["command"]],
+             "",
+             "Each technique renders seeded random scenes (seeds in the column *seeds*) "
              "(`bench.target_error_check.check_scene`: `warpvol.scene.procedural.random_scene`, a homogeneous "
              "box or sphere or a random density grid, thin to thick (sigma_t 0.1-5), point or directional light, "
              "sky or none, floor or none, half of them with a sphere occluder; `random_cloud`, 60-200 spheres), "
@@ -91,7 +103,7 @@ def write(args, ap, out: Path, path: Path, rows: list) -> None:
              "(column *truth*); where it is the mean of two seeds (the reference, illumination_network) its own "
              "noise, from their spread, is taken out in quadrature. Met: the truth at most the target. Within 2x: estimate / truth in [0.5, 2]. "
              "Moved: scenes where target_error took a bias setting to its limit (`frame.moved_to_limit`).", "",
-             "| technique | target | truth | scenes | mean radiance (min, max) | met | within 2x | "
+             "| technique | target | truth | seeds | mean radiance (min, max) | met | within 2x | "
              "estimate / truth (min, median, max) | knob chosen (median) | moved |",
              "|---|---|---|---|---|---|---|---|---|---|"]
     for technique in CASES:
@@ -102,7 +114,8 @@ def write(args, ap, out: Path, path: Path, rows: list) -> None:
         knob = [list(r["knob"].values())[0] for r in rs if r["knob"]]
         radiance = [r["mean_radiance"] for r in rs]
         moved = {k: sum(k in r["moved"] for r in rs) for k in sorted({k for r in rs for k in r["moved"]})}
-        lines.append(f"| {technique} | {rs[0]['target']} | {rs[0]['truth_is']} | {len(rs)} | "
+        seeds = [int(r["scene"].rsplit(", ", 1)[1].rstrip(")")) for r in rs]
+        lines.append(f"| {technique} | {rs[0]['target']} | {rs[0]['truth_is']} | {min(seeds)}-{max(seeds)} ({len(rs)}) | "
                      f"{min(radiance):.2g}, {max(radiance):.2g} | "
                      f"{sum(r['truth'] <= r['target'] for r in rs)} | {int(np.sum((ratio >= 0.5) & (ratio <= 2)))} | "
                      f"{ratio.min():.2f}, {np.median(ratio):.2f}, {ratio.max():.2f} | "
@@ -150,7 +163,7 @@ def main(argv=None) -> None:
                          "mean_radiance": float(np.mean(truth_image)), "target": target,
                          "estimate": frame.error_estimate, "biases": frame.bias_estimates, "truth": truth, "truth_noise": noise,
                          "truth_is": truth_is, "knob": {knob: frame.settings[knob]}, "moved": frame.moved_to_limit,
-                         "seconds": seconds})
+                         "seconds": seconds, "command": command_of(args, ap)})
             print(f"{technique} {kind}({seed}): estimate {frame.error_estimate:.3g} truth {truth:.3g} "
                   f"{rows[-1]['knob']} {seconds:.1f} s", flush=True)
         write(args, ap, out, path, rows)  # after each scene: a stopped run keeps what it measured

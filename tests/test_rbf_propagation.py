@@ -7,7 +7,7 @@ import pytest
 
 import warpvol as wv
 from warpvol.metrics import relative_rmse
-from warpvol.scene import SceneError
+from warpvol.scene import SceneError, scene_from_dict
 from warpvol.scene.procedural import rbf_cornell
 
 
@@ -201,3 +201,56 @@ def test_a_surface_outside_the_volume_reads_the_opv_where_its_light_path_enters(
     assert np.isfinite(img).all()
     err = relative_rmse(img, ref)
     assert err < 0.12, err
+
+
+PER_RBF = {"centers": [[0.0, 0.0, 0.0], [0.8, 0.1, 0.0], [-0.5, -0.4, 0.2]], "radius": [0.2, 0.05, 0.35],
+           "amplitude": [2.0, 1.0, 0.5]}
+
+
+def test_injection_takes_each_rbfs_own_radius_and_amplitude(device):
+    """Giroud & Biri give each RBF its own amplitude c and scale a: the extinction volume is
+    peak sum_i a_i exp(-|x - c_i|^2 / (2 r_i^2)) at the cell centres, each Gaussian cut off at
+    5 of its own radii (float32 sums: rtol 1e-5)."""
+    medium = {**rbf(PER_RBF["centers"], PER_RBF["radius"]), "amplitude": PER_RBF["amplitude"]}
+    a = renderer(box_scene([medium], [POINT]), device, grid=12).arrays()
+    x = cell_centres(a, 12)
+    expected = sum(amp * rbf_sum([c], r, 3.0, x) for c, r, amp in zip(*PER_RBF.values()))
+    np.testing.assert_allclose(a["extinction"][..., 0].ravel(), expected, rtol=1e-5, atol=1e-6)
+
+
+def test_per_rbf_optical_depth_is_the_closed_form(device):
+    """An absorbing medium (albedo 0) of Gaussians with their own radii and amplitudes before a
+    white sky: the centre pixel's ray runs along -z, so the image there is exp(-tau) with tau =
+    peak sum_i a_i exp(-h_i^2 / 2 r_i^2) r_i sqrt(2 pi), h_i the centre's distance from the ray
+    (every chord whole: erf in float32, cut-off at 5 radii: rtol 1e-4); a
+    Gaussian of amplitude 2 renders as two coincident ones of amplitude 1 (float rounding)."""
+    def scene(media):
+        return {"name": "per-rbf", "background": [1.0, 1.0, 1.0],
+                "camera": {"origin": [0, 0, 3], "target": [0, 0, 0], "fov_y": 30.0, "width": 5, "height": 5},
+                "lights": [], "media": media}
+
+    medium = {**rbf(PER_RBF["centers"], PER_RBF["radius"], peak=1.5), "amplitude": PER_RBF["amplitude"], "albedo": 0.0}
+    img = wv.render(scene([medium]), "raymarch", device=device).image
+    c, r, a = (np.asarray(v, float) for v in PER_RBF.values())
+    h2 = c[:, 0] ** 2 + c[:, 1] ** 2
+    tau = 1.5 * np.sum(a * np.exp(-h2 / (2 * r * r)) * r * np.sqrt(2 * np.pi) * (h2 < (5 * r) ** 2))
+    np.testing.assert_allclose(img[2, 2], np.exp(-tau), rtol=1e-4)
+    two = {**medium, "centers": [PER_RBF["centers"][0]] * 2 + PER_RBF["centers"][1:], "radius": [0.2, 0.2, 0.05, 0.35],
+           "amplitude": [1.0, 1.0, 1.0, 0.5]}
+    np.testing.assert_allclose(wv.render(scene([two]), "raymarch", device=device).image, img, rtol=1e-5, atol=1e-6)
+
+
+def test_per_rbf_keys_and_files(tmp_path):
+    """A (N, 5) .npy file holds x, y, z, radius, amplitude; a list of the wrong length, a radius
+    <= 0 or a 5-column file beside a radius key is refused naming the key."""
+    np.save(tmp_path / "g.npy", np.array([[0, 0, 0, 0.2, 2.0], [0.5, 0, 0, 0.1, 1.0]], np.float32))
+    m = scene_from_dict({"camera": {"origin": [0, 0, 3], "target": [0, 0, 0]},
+                            "media": [{"type": "rbf", "file": "g.npy", "peak": 1.0, "albedo": 0.5}]},
+                           base_dir=str(tmp_path)).media[0]
+    radii, amps = m.gaussians()
+    assert m.radius == pytest.approx(0.2) and list(radii) == pytest.approx([0.2, 0.1]) and list(amps) == [2.0, 1.0]
+    for medium, key in [({**rbf([[0, 0, 0], [1, 0, 0]], [0.2]), }, "radius"),
+                        ({**rbf([[0, 0, 0]], [0.0])}, "radius"),
+                        ({**rbf([[0, 0, 0]], 0.2), "amplitude": [1.0, 2.0]}, "amplitude")]:
+        with pytest.raises(SceneError, match=rf"media\[0\]\.{key}"):
+            scene_from_dict({"camera": {"origin": [0, 0, 3], "target": [0, 0, 0]}, "media": [medium]})

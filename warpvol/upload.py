@@ -249,6 +249,7 @@ class MediaBuffers:
     def __init__(self, scene: Scene, device):
         kinds, bmin, bmax, center, radius, sigma, albedo, phases, dims, offset, reach = ([] for _ in range(11))
         majorants, grid_chunks, point_chunks, tables = [], [], [], []
+        radius_chunks, amplitude_chunks = [], []  # per RBF Gaussian
         n_grid = n_points = n_table = n_majorant = 0
         point_media, majorant_chunks, majorant_dims, majorant_offset = [], [], [], []
         self.volumes = []  # NanoVDB grids (wp.Volume), kept alive while kernels read them
@@ -301,10 +302,15 @@ class MediaBuffers:
                 kinds.append(int(RBF))
                 radius[-1], offset[-1] = m.radius, n_points
                 point_chunks.append(m.centers)
+                radii, amps = m.gaussians()
+                radius_chunks.append(radii)
+                amplitude_chunks.append(amps)
                 point_media.append((len(kinds) - 1, n_points, len(m.centers), float(CUTOFF) * m.radius))
                 n_points += len(m.centers)
                 sigma.append(tuple(m.peak))
-                majorants.append(rbf_majorant(m.centers, m.radius) * np.asarray(m.peak))
+                uniform = m.radii is None or bool(np.all(radii == radii[0])) and bool(np.all(amps == 1.0))
+                majorants.append((rbf_majorant(m.centers, m.radius) if uniform else
+                                  rbf_majorant(m.centers, radii, amplitudes=amps)) * np.asarray(m.peak))
             else:  # particles: a cloud of their own, as every particle kernel reads one
                 kinds.append(int(PARTICLES))
                 radius[-1], offset[-1] = m.radius, len(self.clouds)
@@ -333,6 +339,10 @@ class MediaBuffers:
         s.volume_origin = wp.array(np.asarray(volume_origin or [(0, 0, 0)], np.int32), dtype=wp.vec3i, device=device)
         pts_all = np.concatenate(point_chunks).astype(np.float32) if n_points else np.zeros((1, 3), np.float32)
         s.points = wp.array(pts_all, dtype=wp.vec3, device=device)
+        s.point_radius = wp.array(np.concatenate(radius_chunks) if n_points else np.ones(1, np.float32), dtype=float,
+                                  device=device)
+        s.point_amplitude = wp.array(np.concatenate(amplitude_chunks) if n_points else np.ones(1, np.float32),
+                                     dtype=float, device=device)
         s.particles = wp.array([c.struct for c in self.clouds] or [Particles()], dtype=Particles, device=device)
         s.phase_table = wp.array(np.concatenate(tables) if tables else np.zeros(1, np.float32), dtype=float, device=device)
         self.hash_grids = []
@@ -349,12 +359,14 @@ class MediaBuffers:
         # the components they cross for exact optical depth and free flight
         self.bvhs = []
         bvh_ids = np.zeros(max(count, 1), np.uint64)
+        radius_all = np.concatenate(radius_chunks) if n_points else np.ones(1, np.float32)
         for i, first, n, reach in point_media:
             if n == 0:
                 continue
             pts = pts_all[first : first + n]
-            bvh = wp.Bvh(wp.array(pts - reach, dtype=wp.vec3, device=device),
-                         wp.array(pts + reach, dtype=wp.vec3, device=device))
+            own = (float(CUTOFF) * radius_all[first : first + n])[:, None]  # each Gaussian's own cut-off
+            bvh = wp.Bvh(wp.array(pts - own, dtype=wp.vec3, device=device),
+                         wp.array(pts + own, dtype=wp.vec3, device=device))
             self.bvhs.append(bvh)
             bvh_ids[i] = bvh.id
         s.bvh = wp.array(bvh_ids, dtype=wp.uint64, device=device)

@@ -1,8 +1,9 @@
-"""Gaussian RBF media: sigma_t(x) = sum_i peak * exp(-|x - c_i|^2 / (2 radius^2)).
+"""Gaussian RBF media: sigma_t(x) = peak sum_i a_i exp(-|x - c_i|^2 / (2 r_i^2)), each
+Gaussian of its own standard deviation r_i and amplitude a_i.
 
-Each Gaussian is cut off at CUTOFF * radius, where it has fallen to exp(-CUTOFF^2 / 2)
-= 3.7e-6 of its peak: the error this leaves is below 3.7e-6 * peak per overlapping RBF.
-Centres are found through a ``wp.HashGrid`` with cells of the cut-off radius.
+Each Gaussian is cut off at CUTOFF r_i, where it has fallen to exp(-CUTOFF^2 / 2) = 3.7e-6
+of its peak: the error this leaves is below 3.7e-6 a_i peak per overlapping RBF. Centres are
+found through a ``wp.HashGrid`` queried at the largest cut-off radius.
 """
 
 import numpy as np
@@ -12,18 +13,20 @@ CUTOFF = wp.constant(5.0)
 
 
 @wp.func
-def rbf_density(grid: wp.uint64, points: wp.array(dtype=wp.vec3), offset: int, radius: float, x: wp.vec3) -> float:
-    """sum_i exp(-|x - c_i|^2 / (2 radius^2)) over the centres within the cut-off."""
-    r_cut = CUTOFF * radius
-    inv = 0.5 / (radius * radius)
+def rbf_density(grid: wp.uint64, points: wp.array(dtype=wp.vec3), radii: wp.array(dtype=float),
+                amplitudes: wp.array(dtype=float), offset: int, largest: float, x: wp.vec3) -> float:
+    """sum_i a_i exp(-|x - c_i|^2 / (2 r_i^2)) over the centres within their cut-off
+    (``largest``: the largest r_i, the hash grid's query radius over CUTOFF)."""
     s = float(0.0)
     index = int(0)
-    query = wp.hash_grid_query(grid, x, r_cut)
+    query = wp.hash_grid_query(grid, x, CUTOFF * largest)
     while wp.hash_grid_query_next(query, index):
-        d = x - points[offset + index]
+        k = offset + index
+        d = x - points[k]
         d2 = wp.dot(d, d)
-        if d2 < r_cut * r_cut:
-            s += wp.exp(-d2 * inv)
+        r = radii[k]
+        if d2 < CUTOFF * CUTOFF * r * r:
+            s += amplitudes[k] * wp.exp(-0.5 * d2 / (r * r))
     return s
 
 
@@ -40,15 +43,20 @@ def coarse_cells(bmin: np.ndarray, bmax: np.ndarray, n: int):
     return lo, hi
 
 
-def rbf_majorant(centers: np.ndarray, radius: float, n: int = 12) -> float:
+def rbf_majorant(centers: np.ndarray, radius, n: int = 12, amplitudes=None) -> float:
     """A rigorous bound of the density factor: over coarse cells, the sum of each Gaussian's
-    maximum over the cell (its value at the closest point of the cell)."""
+    maximum over the cell (its value at the closest point of the cell). ``radius``: one for
+    all or one a centre; ``amplitudes``: one a centre (default 1)."""
     if len(centers) == 0:
         return 0.0
-    cut = float(CUTOFF) * radius
+    radii = np.broadcast_to(np.asarray(radius, np.float64), (len(centers),))
+    amps = np.ones(len(centers)) if amplitudes is None else np.asarray(amplitudes, np.float64)
+    cut = float(CUTOFF) * radii.max()
     lo, hi = coarse_cells(centers.min(0) - cut, centers.max(0) + cut, n)
     total = np.zeros(len(lo))
     for s in range(0, len(centers), 2048):
         d2 = box_distance2(lo, hi, centers[s : s + 2048].astype(np.float64))
-        total += np.sum(np.where(d2 < cut * cut, np.exp(-d2 / (2 * radius * radius)), 0.0), axis=1)
+        r, a = radii[s : s + 2048], amps[s : s + 2048]
+        cut_k = float(CUTOFF) * r
+        total += np.sum(np.where(d2 < cut_k * cut_k, a * np.exp(-d2 / (2 * r * r)), 0.0), axis=1)
     return float(total.max())

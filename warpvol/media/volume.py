@@ -46,7 +46,7 @@ class Media:
     reach_centre: wp.array(dtype=wp.vec3)  # a ball around each medium (a sphere, a cloud of spheres)
     reach: wp.array(dtype=float)  # its radius (the box's circumsphere where nothing tighter is known)
     center: wp.array(dtype=wp.vec3)  # homogeneous sphere centre
-    radius: wp.array(dtype=float)  # sphere / RBF sigma / particle radius
+    radius: wp.array(dtype=float)  # sphere / the largest RBF sigma / particle radius
     sigma: wp.array(dtype=wp.vec3)  # RGB scale of the density factor, 1/unit
     albedo: wp.array(dtype=wp.vec3)
     phase: wp.array(dtype=Phase)
@@ -57,6 +57,8 @@ class Media:
     hash_grid: wp.array(dtype=wp.uint64)  # RBF media: a wp.HashGrid over their centres
     grid_data: wp.array(dtype=float)
     points: wp.array(dtype=wp.vec3)  # RBF centres
+    point_radius: wp.array(dtype=float)  # each RBF Gaussian's standard deviation
+    point_amplitude: wp.array(dtype=float)  # and its amplitude
     particles: wp.array(dtype=Particles)  # particle media: each one's cloud (media/particles.py)
     phase_table: wp.array(dtype=float)
     all_min: wp.vec3  # union bounds of every medium
@@ -89,7 +91,7 @@ def medium_density(m: Media, i: int, x: wp.vec3) -> float:
         if m.volume[i] != wp.uint64(0):
             return volume_trilinear(m.volume[i], m.volume_origin[i], m.dims[i], lo, hi, x)
         return grid_trilinear(m.grid_data, m.offset[i], m.dims[i], lo, hi, x)
-    return rbf_density(m.hash_grid[i], m.points, m.offset[i], m.radius[i], x)
+    return rbf_density(m.hash_grid[i], m.points, m.point_radius, m.point_amplitude, m.offset[i], m.radius[i], x)
 
 
 @wp.func
@@ -301,12 +303,13 @@ def exact_optical_depth(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: float) 
         if kind == PARTICLES:
             tau += particle_optical_depth(m.particles[m.offset[i]], -1, o, d, t0, t1)
         elif kind == RBF:
-            r = m.radius[i]
             acc = float(0.0)
             query = wp.bvh_query_ray(m.bvh[i], o, d)
             k = int(0)
             while wp.bvh_query_next(query, k, t1):
+                r = m.point_radius[m.offset[i] + k]
                 tc, g, s = gaussian_on_ray(o, d, m.points[m.offset[i] + k], r)
+                g *= m.point_amplitude[m.offset[i] + k]
                 a = wp.max(tc - s, t0)
                 b = wp.min(tc + s, t1)
                 if a < b:  # float32 erf: its absolute error (6e-8 of the Gaussian's mass) is harmless here
@@ -332,9 +335,6 @@ def depths_and_extinction(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: float
         kind = m.kind[i]
         s1 = wp.vec3(0.0)
         if kind == RBF:
-            r = m.radius[i]
-            s2r = SQRT2 * r
-            inv = 0.5 / (r * r)
             acc1 = float(0.0)
             acc2 = float(0.0)
             dens1 = float(0.0)
@@ -342,7 +342,11 @@ def depths_and_extinction(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: float
             query = wp.bvh_query_ray(m.bvh[i], o, d)
             k = int(0)
             while wp.bvh_query_next(query, k, wp.max(t1, t2)):
+                r = m.point_radius[m.offset[i] + k]
+                s2r = SQRT2 * r
+                inv = 0.5 / (r * r)
                 tc, g, h = gaussian_on_ray(o, d, m.points[m.offset[i] + k], r)
+                g *= m.point_amplitude[m.offset[i] + k]
                 a = wp.max(tc - h, t0)
                 b = tc + h
                 if a < wp.min(b, wp.max(t1, t2)):
@@ -429,11 +433,12 @@ def free_flight(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: float, c: int, 
                             best = t
                             who = i
             else:
-                r = m.radius[i]
                 query = wp.bvh_query_ray(m.bvh[i], o, d)
                 k = int(0)
                 while wp.bvh_query_next(query, k, best):
+                    r = m.point_radius[m.offset[i] + k]
                     tc, g, s = gaussian_on_ray(o, d, m.points[m.offset[i] + k], r)
+                    g *= m.point_amplitude[m.offset[i] + k]
                     a = wp.max(tc - s, t0)
                     b = wp.min(tc + s, best)
                     if a < b:

@@ -351,6 +351,58 @@ def _hg_draine_phase(t: _Table, ph: Phase) -> None:
     ph.g, ph.g_d, ph.alpha, ph.w_d = fit.g_hg, fit.g_d, fit.alpha, fit.w_d
 
 
+def _rbf_medium(t: _Table, common: dict, base_dir: str) -> RBFMedium:
+    """Gaussians from ``centers`` (or a .npy ``file`` of rows x, y, z or x, y, z, radius,
+    amplitude), each of ``radius`` (a number, or one a centre) and ``amplitude`` (one a centre,
+    default 1)."""
+    columns = None
+    if "file" in t.data:
+        path = t.path("file", base_dir)
+        allowed = "a .npy file of shape (N, 3) (centres) or (N, 5) (x, y, z, radius, amplitude) with at least one centre"
+        a = _load_npy(t, "file", path, allowed)
+        if a.ndim != 2 or a.shape[1] not in (3, 5):
+            t.fail(t.key("file"), f"{path!r} holds an array of shape {a.shape}", allowed)
+        if not len(a):
+            t.fail(t.key("file"), f"{path!r} holds no centres", allowed)
+        a = _array(t, "file", a, (a.shape[1],), allowed)
+        centers, columns = a[:, :3], (a[:, 3:] if a.shape[1] == 5 else None)
+    else:
+        centers = _points(t, "centers", base_dir, "centre")
+    n = len(centers)
+    if columns is not None:
+        for key in ("radius", "amplitude"):
+            if key in t.data:
+                t.fail(t.key(key), "given with a 5-column file", "the file's columns, or a 3-column file with this key")
+        radii, amps = columns[:, 0], columns[:, 1]
+        if np.any(radii <= 0) or np.any(amps < 0):
+            t.fail(t.key("file"), "has a radius <= 0 or an amplitude < 0", "radii > 0 and amplitudes >= 0")
+    else:
+        radii = _per_centre(t, "radius", n, lo_open=True, default=None)
+        amps = _per_centre(t, "amplitude", n, lo_open=False, default=1.0)
+    scalar = t.data.get("radius") if columns is None and isinstance(t.data.get("radius"), (int, float)) else None
+    return RBFMedium(**common, centers=centers, radius=float(scalar) if scalar is not None else float(np.max(radii)),
+                     radii=radii.astype(np.float32), amplitudes=amps.astype(np.float32),
+                     peak=t.vec3("peak", lo=0.0, scalar_ok=True))
+
+
+def _per_centre(t: _Table, name: str, n: int, lo_open: bool, default) -> np.ndarray:
+    """A number for every centre, or a list of n numbers (> 0 with ``lo_open``, else >= 0)."""
+    bound = "> 0" if lo_open else ">= 0"
+    allowed = f"a number {bound}, or a list of them, one a centre"
+    v = t.raw(name, _REQUIRED if default is None else default, allowed, "number or list")
+    if isinstance(v, (list, tuple, np.ndarray)):
+        a = _array(t, name, v, (), allowed)
+        if a.shape != (n,):
+            t.fail(t.key(name), f"has {a.size} values for {n} centres", allowed)
+    elif isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v):
+        a = np.full(n, float(v), np.float32)
+    else:
+        t.fail(t.key(name), f"expected a number or a list, got {v!r}", allowed)
+    if np.any(a <= 0) if lo_open else np.any(a < 0):
+        t.fail(t.key(name), "has a value out of range", allowed)
+    return a
+
+
 def _medium(data, where, source, base_dir) -> Medium:
     t = _Table(data, where, source)
     kind = t.string("type", choices=["homogeneous", "grid", "rbf", "particles"])
@@ -370,9 +422,7 @@ def _medium(data, where, source, base_dir) -> Medium:
     elif kind == "grid":
         m = _grid_medium(t, common, base_dir)
     elif kind == "rbf":
-        m = RBFMedium(**common, centers=_points(t, "centers", base_dir, "centre"),
-                      radius=t.number("radius", lo=0.0, lo_open=True),
-                      peak=t.vec3("peak", lo=0.0, scalar_ok=True))
+        m = _rbf_medium(t, common, base_dir)
     else:
         radius = t.number("radius", lo=0.0, lo_open=True)
         block_size = 0

@@ -118,9 +118,22 @@ class GridMedium(Medium):
 
 @dataclass
 class RBFMedium(Medium):
+    """sigma_t(x) = peak sum_i a_i exp(-|x - c_i|^2 / (2 r_i^2)): Gaussians of their own
+    standard deviation r_i (``radii``) and amplitude a_i (``amplitudes``; Giroud & Biri's c and
+    a), ``radius`` the largest r_i."""
+
     centers: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.float32))
-    radius: float = 0.5  # sigma of each Gaussian
-    peak: Vec3 = (1.0, 1.0, 1.0)  # sigma_t at a centre
+    radius: float = 0.5  # the largest Gaussian's standard deviation
+    peak: Vec3 = (1.0, 1.0, 1.0)  # sigma_t at the centre of a Gaussian of amplitude 1
+    radii: np.ndarray | None = None  # (N,) each Gaussian's standard deviation; None: all ``radius``
+    amplitudes: np.ndarray | None = None  # (N,) each Gaussian's amplitude; None: all 1
+
+    def gaussians(self) -> tuple[np.ndarray, np.ndarray]:
+        """(radii, amplitudes), one entry per centre, float32."""
+        n = len(self.centers)
+        radii = np.full(n, self.radius, np.float32) if self.radii is None else np.asarray(self.radii, np.float32)
+        amps = np.ones(n, np.float32) if self.amplitudes is None else np.asarray(self.amplitudes, np.float32)
+        return radii, amps
 
     @property
     def type(self) -> str:

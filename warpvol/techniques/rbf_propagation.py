@@ -172,13 +172,15 @@ def volume_lookup(values: wp.array(dtype=wp.vec3), base: int, v: Volume, x: wp.v
 
 
 @wp.kernel
-def inject_rbfs(offset: int, centres: wp.array(dtype=wp.vec3), radius: float, peak: wp.vec3, v: Volume,
-                ev: wp.array(dtype=wp.vec3)):
-    """One thread per RBF: add peak exp(-|x - c|^2 / (2 radius^2)) to the cells within the cut-off."""
+def inject_rbfs(offset: int, centres: wp.array(dtype=wp.vec3), radii: wp.array(dtype=float),
+                amplitudes: wp.array(dtype=float), peak: wp.vec3, v: Volume, ev: wp.array(dtype=wp.vec3)):
+    """One thread per RBF: add peak a exp(-|x - c|^2 / (2 r^2)) to the cells within its cut-off."""
     tid = wp.tid() + offset
     c = centres[tid]
+    radius = radii[tid]
     r_cut = CUTOFF * radius
     inv = 0.5 / (radius * radius)
+    peak = peak * amplitudes[tid]
     a = wp.cw_div(c - wp.vec3(r_cut) - v.lo, v.h)
     b = wp.cw_div(c + wp.vec3(r_cut) - v.lo, v.h)
     i0 = wp.max(int(wp.floor(a[0])), 0)
@@ -484,7 +486,8 @@ class RBFPropagation(Technique):
             if m.type == "rbf" and len(m.centers):
                 centres = wp.array(np.asarray(m.centers, np.float32), dtype=wp.vec3, device=self.device)
                 # atomics: one chunk keeps the adds race-free on the CPU as on the GPU
-                wp.launch(inject_rbfs, dim=len(m.centers), inputs=[0, centres, float(m.radius), wp.vec3(*m.peak), v,
+                radii, amps = (wp.array(a, dtype=float, device=self.device) for a in m.gaussians())
+                wp.launch(inject_rbfs, dim=len(m.centers), inputs=[0, centres, radii, amps, wp.vec3(*m.peak), v,
                                                                    self.ev], device=self.device)
 
     def _propagate(self):
