@@ -181,18 +181,23 @@ def _load_npy(t: _Table, name: str, path: str, allowed: str) -> np.ndarray:
     return a
 
 
-def _points(t: _Table, name: str, base_dir: str, what: str, alternatives: str = "a file") -> np.ndarray:
-    """RBF centres or particle positions, (N, 3) with N >= 1, from ``file`` or the list ``name``."""
+def _points(t: _Table, name: str, base_dir: str, what: str, alternatives: str = "a file",
+            file_columns: tuple = (3,), file_shape: str = "(N, 3)") -> np.ndarray:
+    """RBF centres or particle positions, (N, 3) with N >= 1, from ``file`` or the list ``name``;
+    a file may hold rows of any of ``file_columns`` values (the first three the point), as
+    ``file_shape`` says."""
     if "file" in t.data:
-        key, allowed = "file", f"a .npy file of shape (N, 3) with at least one {what}"
+        key, allowed = "file", f"a .npy file of shape {file_shape} with at least one {what}"
         path = t.path("file", base_dir)
         value = _load_npy(t, "file", path, allowed)
-        if value.size and (value.ndim != 2 or value.shape[1] != 3):
+        if value.size and (value.ndim != 2 or value.shape[1] not in file_columns):
             t.fail(t.key(key), f"{path!r} holds an array of shape {value.shape}", allowed)
+        tail = (value.shape[1],) if value.ndim == 2 else (3,)
     else:
         key, allowed = name, f"[[x, y, z], ...] with at least one {what}, or {alternatives}"
         value = t.raw(name, allowed=allowed, kind="[[x, y, z], ...]")
-    a = _array(t, key, value, (3,), allowed)
+        tail = (3,)
+    a = _array(t, key, value, tail, allowed)
     if len(a) == 0:
         t.fail(t.key(key), f"has no {what}s" if key == name else f"{path!r} holds no {what}s", allowed)
     return a
@@ -355,52 +360,42 @@ def _rbf_medium(t: _Table, common: dict, base_dir: str) -> RBFMedium:
     """Gaussians from ``centers`` (or a .npy ``file`` of rows x, y, z or x, y, z, radius,
     amplitude), each of ``radius`` (a number, or one a centre) and ``amplitude`` (one a centre,
     default 1)."""
-    columns = None
-    if "file" in t.data:
-        path = t.path("file", base_dir)
-        allowed = "a .npy file of shape (N, 3) (centres) or (N, 5) (x, y, z, radius, amplitude) with at least one centre"
-        a = _load_npy(t, "file", path, allowed)
-        if a.ndim != 2 or a.shape[1] not in (3, 5):
-            t.fail(t.key("file"), f"{path!r} holds an array of shape {a.shape}", allowed)
-        if not len(a):
-            t.fail(t.key("file"), f"{path!r} holds no centres", allowed)
-        a = _array(t, "file", a, (a.shape[1],), allowed)
-        centers, columns = a[:, :3], (a[:, 3:] if a.shape[1] == 5 else None)
-    else:
-        centers = _points(t, "centers", base_dir, "centre")
-    n = len(centers)
-    if columns is not None:
+    rows = _points(t, "centers", base_dir, "centre", file_columns=(3, 5),
+                   file_shape="(N, 3) (centres) or (N, 5) (x, y, z, radius, amplitude)")
+    centers, n = rows[:, :3], len(rows)
+    if rows.shape[1] == 5:
         for key in ("radius", "amplitude"):
             if key in t.data:
                 t.fail(t.key(key), "given with a 5-column file", "the file's columns, or a 3-column file with this key")
-        radii, amps = columns[:, 0], columns[:, 1]
+        radii, amps, scalar = rows[:, 3], rows[:, 4], None
         if np.any(radii <= 0) or np.any(amps < 0):
             t.fail(t.key("file"), "has a radius <= 0 or an amplitude < 0", "radii > 0 and amplitudes >= 0")
     else:
-        radii = _per_centre(t, "radius", n, lo_open=True, default=None)
-        amps = _per_centre(t, "amplitude", n, lo_open=False, default=1.0)
-    scalar = t.data.get("radius") if columns is None and isinstance(t.data.get("radius"), (int, float)) else None
-    return RBFMedium(**common, centers=centers, radius=float(scalar) if scalar is not None else float(np.max(radii)),
-                     radii=radii.astype(np.float32), amplitudes=amps.astype(np.float32),
-                     peak=t.vec3("peak", lo=0.0, scalar_ok=True))
+        radii, scalar = _per_centre(t, "radius", n, lo_open=True, default=None)
+        amps, _ = _per_centre(t, "amplitude", n, lo_open=False, default=1.0)
+    return RBFMedium(**common, centers=centers, radius=scalar if scalar is not None else float(np.max(radii)),
+                     radii=radii, amplitudes=amps, peak=t.vec3("peak", lo=0.0, scalar_ok=True))
 
 
-def _per_centre(t: _Table, name: str, n: int, lo_open: bool, default) -> np.ndarray:
-    """A number for every centre, or a list of n numbers (> 0 with ``lo_open``, else >= 0)."""
+def _per_centre(t: _Table, name: str, n: int, lo_open: bool, default) -> tuple[np.ndarray, float | None]:
+    """A number for every centre, or a list of n numbers (> 0 with ``lo_open``, else >= 0):
+    (n values as float32, the number where one was given, else None)."""
     bound = "> 0" if lo_open else ">= 0"
     allowed = f"a number {bound}, or a list of them, one a centre"
     v = t.raw(name, _REQUIRED if default is None else default, allowed, "number or list")
+    scalar = None
     if isinstance(v, (list, tuple, np.ndarray)):
         a = _array(t, name, v, (), allowed)
         if a.shape != (n,):
             t.fail(t.key(name), f"has {a.size} values for {n} centres", allowed)
     elif isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v):
-        a = np.full(n, float(v), np.float32)
+        scalar = float(v)
+        a = np.full(n, scalar, np.float32)
     else:
         t.fail(t.key(name), f"expected a number or a list, got {v!r}", allowed)
     if np.any(a <= 0) if lo_open else np.any(a < 0):
         t.fail(t.key(name), "has a value out of range", allowed)
-    return a
+    return a, scalar
 
 
 def _medium(data, where, source, base_dir) -> Medium:
