@@ -242,7 +242,7 @@ def _render_to_target(scene, technique: str, device, progress: bool, target: flo
     first = q.start
     for _ in range(MAX_ROUNDS):
         current = {**base, **held}
-        frame, estimate, level, spread = _ladder(scene, technique, device, progress, aim, current, q, seed, first)
+        frame, estimate, level = _ladder(scene, technique, device, progress, aim, current, q, seed, first)
         biases, limits = {}, {}
         for b in q.biases:
             value = current.get(b.setting, defaults[b.setting])
@@ -253,7 +253,7 @@ def _render_to_target(scene, technique: str, device, progress: bool, target: flo
             if limit == value or (b.exact is None and value == 0):  # at its limit, or off (0: left out)
                 continue
             extra = {**current, b.setting: type(value)(limit)}
-            img, _ = _level_image(scene, technique, device, progress, extra, q, seed, level)
+            img = _level_image(scene, technique, device, progress, extra, q, seed, level)
             biases[b.setting] = bias_error(frame.image, img, b)
             limits[b.setting] = type(value)(limit)
         total = float(np.sqrt(estimate**2 + sum(e * e for e in biases.values())))
@@ -291,13 +291,12 @@ def _two_seeds(scene, technique, device, progress, settings: dict, seed: str):
     return frame, mean, relative_rmse(mean + 0.5 * np.abs(ia - ib), mean)
 
 
-def _level_image(scene, technique, device, progress, settings: dict, q, seed, level: int):
-    """One level's image (the mean of two seeds where the technique is seeded) and its spread."""
+def _level_image(scene, technique, device, progress, settings: dict, q, seed, level: int) -> np.ndarray:
+    """One level's image (the mean of two seeds where the technique is seeded)."""
     settings = {**settings, **q.level_settings(level)}
     if seed is None:
-        return render(scene, technique, device, progress, **settings).image.astype(np.float64), 0.0
-    _, mean, spread = _two_seeds(scene, technique, device, progress, settings, seed)
-    return mean, spread
+        return render(scene, technique, device, progress, **settings).image.astype(np.float64)
+    return _two_seeds(scene, technique, device, progress, settings, seed)[1]
 
 
 def _render_spp(scene, technique, device, progress, target: float, settings: dict, q, seed: str) -> Frame:
@@ -326,7 +325,7 @@ def _ladder(scene, technique, device, progress, target: float, settings: dict, q
     """Double the knob from ``first`` until the error is at most ``target``: at the first level
     whose three-level extrapolation (``remaining_error``) meets it, one more level is rendered
     and the level's error measured against it (``measured_error``). Returns (frame, estimate,
-    level, the frame's own spread)."""
+    level)."""
     r = None
     if seed is None:
         r = Renderer(scene, technique, device, progress, **{**settings, **q.level_settings(first)})
@@ -345,7 +344,7 @@ def _ladder(scene, technique, device, progress, target: float, settings: dict, q
         if candidate is not None:  # the previous level met the target by extrapolation: measure it
             measured = measured_error(images[-2], images[-1], q.order, spreads[-2], spreads[-1])
             if measured <= target:
-                return candidate, measured, level // 2, spreads[-2]
+                return candidate, measured, level // 2
             candidate = None
         estimate = float("inf")
         if len(images) >= 3:
@@ -354,7 +353,7 @@ def _ladder(scene, technique, device, progress, target: float, settings: dict, q
             frame = _with_image(frame, images[-1], frame.settings)
             if not np.isfinite(estimate) and len(images) >= 2:  # the coarser level's measured error, one doubling on
                 estimate = 0.5**q.order * measured_error(images[-2], images[-1], q.order, spreads[-2], spreads[-1])
-            return frame, estimate, level, spreads[-1]
+            return frame, estimate, level
         if estimate <= target:  # a copy: the next level may reuse the output buffer
             candidate = _with_image(frame, images[-1], frame.settings)
         level *= 2

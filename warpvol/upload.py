@@ -308,9 +308,10 @@ class MediaBuffers:
                 point_media.append((len(kinds) - 1, n_points, len(m.centers), float(CUTOFF) * m.radius))
                 n_points += len(m.centers)
                 sigma.append(tuple(m.peak))
-                uniform = m.radii is None or bool(np.all(radii == radii[0])) and bool(np.all(amps == 1.0))
-                majorants.append((rbf_majorant(m.centers, m.radius) if uniform else
-                                  rbf_majorant(m.centers, radii, amplitudes=amps)) * np.asarray(m.peak))
+                # one radius for all: the scalar, so the bound is the one a uniform medium always had
+                same = len(radii) == 0 or bool(np.all(radii == radii[0]))
+                majorants.append(rbf_majorant(m.centers, m.radius if same else radii, amplitudes=amps)
+                                 * np.asarray(m.peak))
             else:  # particles: a cloud of their own, as every particle kernel reads one
                 kinds.append(int(PARTICLES))
                 radius[-1], offset[-1] = m.radius, len(self.clouds)
@@ -339,8 +340,8 @@ class MediaBuffers:
         s.volume_origin = wp.array(np.asarray(volume_origin or [(0, 0, 0)], np.int32), dtype=wp.vec3i, device=device)
         pts_all = np.concatenate(point_chunks).astype(np.float32) if n_points else np.zeros((1, 3), np.float32)
         s.points = wp.array(pts_all, dtype=wp.vec3, device=device)
-        s.point_radius = wp.array(np.concatenate(radius_chunks) if n_points else np.ones(1, np.float32), dtype=float,
-                                  device=device)
+        radius_all = np.concatenate(radius_chunks) if n_points else np.ones(1, np.float32)
+        s.point_radius = wp.array(radius_all, dtype=float, device=device)
         s.point_amplitude = wp.array(np.concatenate(amplitude_chunks) if n_points else np.ones(1, np.float32),
                                      dtype=float, device=device)
         s.particles = wp.array([c.struct for c in self.clouds] or [Particles()], dtype=Particles, device=device)
@@ -359,7 +360,6 @@ class MediaBuffers:
         # the components they cross for exact optical depth and free flight
         self.bvhs = []
         bvh_ids = np.zeros(max(count, 1), np.uint64)
-        radius_all = np.concatenate(radius_chunks) if n_points else np.ones(1, np.float32)
         for i, first, n, reach in point_media:
             if n == 0:
                 continue
