@@ -34,7 +34,7 @@ CASES = {
     "rbf_propagation": (0.05, "random_scene", [{"grid": 256, "steps": 1024}], "grid 256, 1024 steps"),
     "depth_impostors": (0.02, "random_cloud", [{"light_pass": 0, "impostor_res": 128, "light_samples": 1024,
                                                 "sky_samples": 256}],
-                        "exact light pass, 128-texel impostors, 1024 light samples, 256 sky directions"),
+                        "exact light pass (the sky's too), 128-texel impostors, 1024 light samples, 256 sky directions"),
     "illumination_network": (0.03, "random_cloud", [{"directions": 4096, "direction_seed": k, "window_at": 128,
                                                      "light_pass": 0, "light_samples": 1024} for k in (3, 4)],
                              "two turned sets of 4096 directions (the window held at D = 128's), exact light pass, "

@@ -49,7 +49,7 @@ from ..geometry.intersect import ray_sphere
 from ..physics.constants import PI
 from ..physics.lights import DIRECTIONAL, Light, light_incident, particle_incident
 from ..physics.transmittance import sphere_escape, step_integral, transmittance_rgb
-from .particles import ParticleBuffers, Particles, particle_optical_depth
+from .particles import BlockCloud, Blocks, ParticleBuffers, Particles, particle_optical_depth
 
 EXACT = wp.constant(0)
 SLICES = wp.constant(1)
@@ -58,6 +58,7 @@ REPRESENTATIONS = ("exact", "slices", "fourier")
 MAX_TEXELS = 1024  # texels per face side, at most
 MIN_TEXELS = 64  # and by the rule at least
 MAX_BYTES = 128 << 20  # one map's texels at most (a CPU build holds one copy per core)
+MAX_TEMPLATE_TEXELS = 128  # texels a side of a template's light impostor, at most
 REFINE_ROUNDS = 3  # a map above its tolerance is refined at most this many times before the exact fallback
 
 
@@ -162,14 +163,17 @@ def texel_area(f: LightFace, M: int, u: float, v: float, t: float) -> float:
 
 
 @wp.kernel
-def splat_spheres(offset: int, P: Particles, m: LightMap, out: wp.array(dtype=wp.vec3)):
+def splat_spheres(offset: int, P: Particles, m: LightMap, blocked: int, out: wp.array(dtype=wp.vec3)):
     """Thread p F + f: sphere p into face f; every texel whose centre ray crosses it gets the
     chord (texels over the sphere's projected box), or, for a sphere under a texel, its
-    optical volume over the four texels around its centre."""
+    optical volume over the four texels around its centre. ``blocked`` = 1: orthographic
+    faces are left to ``splat_blocks``."""
     tid = wp.tid() + offset
     F = m.faces.shape[0]
     p = tid / F
     f = m.faces[tid % F]
+    if blocked != 0 and f.ortho != 0:
+        return
     c = P.centres[p]
     r = P.radius[p]
     sig = P.sigma_t[p]
@@ -236,6 +240,98 @@ def splat_spheres(offset: int, P: Particles, m: LightMap, out: wp.array(dtype=wp
             a, b = ray_sphere(o, d, c, r)
             if b > a and b > 0.0:
                 deposit(m, f.first + j * M + i, wp.max(a, 0.0), b, sig, f.near, f.far, out)
+
+
+@wp.kernel
+def template_light(offset: int, B: Blocks, owner: wp.array(dtype=int), reach: wp.array(dtype=float), m: LightMap,
+                   T: int, out: wp.array(dtype=wp.vec3)):
+    """Thread j F + f: sphere j of its template (``owner[j]``) into the template's light
+    impostor for orthographic face f, a T x T grid over the template's bounding disc (radius
+    ``reach``) across the light, the paper's block rendered once from the light (b work).
+    A cell sums, over the chords of its centre ray, the chord length L, L z and
+    L (z^2 + L^2 / 12) (z: the chord's mid-depth from the template's centre): the chords'
+    total and the mean and second moment of their depth, all sums, so cores may add
+    private copies. A sphere under a cell deposits its volume in the cell of its centre."""
+    tid = wp.tid() + offset
+    F = m.faces.shape[0]
+    j = tid / F
+    fi = tid % F
+    f = m.faces[fi]
+    if f.ortho == 0:
+        return
+    t = owner[j]
+    R = reach[t]
+    r = B.radius[t]
+    c = B.offsets[j]
+    h = 2.0 * R / float(T)  # a cell's side
+    cu = wp.dot(c, f.right)
+    cv = wp.dot(c, f.up)
+    z = wp.dot(c, f.forward)
+    base = (t * F + fi) * T * T
+    if r < h:
+        i = wp.clamp(int(wp.floor((cu + R) / h)), 0, T - 1)
+        k = wp.clamp(int(wp.floor((cv + R) / h)), 0, T - 1)
+        L = (4.0 / 3.0) * PI * r * r * r / (h * h)
+        out[base + k * T + i] += wp.vec3(L, L * z, L * (z * z + r * r / 5.0))
+        return
+    ia = wp.max(int(wp.ceil((cu - r + R) / h - 0.5)), 0)
+    ib = wp.min(int(wp.floor((cu + r + R) / h - 0.5)), T - 1)
+    ja = wp.max(int(wp.ceil((cv - r + R) / h - 0.5)), 0)
+    jb = wp.min(int(wp.floor((cv + r + R) / h - 0.5)), T - 1)
+    for k in range(ja, jb + 1):
+        for i in range(ia, ib + 1):
+            du = (float(i) + 0.5) * h - R - cu
+            dv = (float(k) + 0.5) * h - R - cv
+            q = r * r - du * du - dv * dv
+            if q > 0.0:
+                L = 2.0 * wp.sqrt(q)
+                out[base + k * T + i] += wp.vec3(L, L * z, L * (z * z + L * L / 12.0))
+
+
+@wp.kernel
+def splat_blocks(offset: int, B: Blocks, m: LightMap, T: int, cells: wp.array(dtype=wp.vec3),
+                 out: wp.array(dtype=wp.vec3)):
+    """Thread i F + f: instance i into orthographic face f from its template's light impostor
+    (N / b work): every texel whose centre ray crosses the instance's bounding disc takes the
+    impostor cell under it, its optical depth spread evenly over the depth interval with the
+    chords' mean and variance (mean +- sqrt(3) sd: the block's chords through that texel
+    merged into one segment)."""
+    tid = wp.tid() + offset
+    F = m.faces.shape[0]
+    i = tid / F
+    fi = tid % F
+    f = m.faces[fi]
+    if f.ortho == 0:
+        return
+    t = B.tpl[i]
+    R = B.reach[i]
+    rel = B.centre[i] - f.origin
+    cu = wp.dot(rel, f.right) / f.half
+    cv = wp.dot(rel, f.up) / f.half
+    tc = wp.dot(rel, f.forward)
+    ru = R / f.half
+    M = m.M
+    texel = 2.0 / float(M)
+    ia = wp.max(int(wp.ceil((cu - ru + 1.0) / texel - 0.5)), 0)
+    ib = wp.min(int(wp.floor((cu + ru + 1.0) / texel - 0.5)), M - 1)
+    ja = wp.max(int(wp.ceil((cv - ru + 1.0) / texel - 0.5)), 0)
+    jb = wp.min(int(wp.floor((cv + ru + 1.0) / texel - 0.5)), M - 1)
+    base = (t * F + fi) * T * T
+    sig = B.sigma_t[t]
+    for j in range(ja, jb + 1):
+        tj = int(wp.floor((((float(j) + 0.5) * texel - 1.0 - cv) / ru + 1.0) * 0.5 * float(T)))
+        if tj < 0 or tj >= T:
+            continue
+        for ii in range(ia, ib + 1):
+            ti = int(wp.floor((((float(ii) + 0.5) * texel - 1.0 - cu) / ru + 1.0) * 0.5 * float(T)))
+            if ti < 0 or ti >= T:
+                continue
+            s = cells[base + tj * T + ti]
+            if s[0] > 0.0:
+                mean = s[1] / s[0]
+                half = wp.max(wp.sqrt(3.0 * wp.max(s[2] / s[0] - mean * mean, 0.0)), 1.0e-6)
+                deposit(m, f.first + j * M + ii, tc + mean - half, tc + mean + half, sig * (s[0] / (2.0 * half)),
+                        f.near, f.far, out)
 
 
 @wp.kernel
@@ -474,10 +570,18 @@ class LightPass:
         self.fell_back = False
         self.refined: list[tuple[int, int, float]] = []  # (M, C, error) of each map refined away
         self.checked: np.ndarray | None = None  # the exact transmittances the last check compared with
+        self.template_texels = 0  # texels a side of each template's light impostor (0: no block light pass)
+        self._blocks: BlockCloud | None = None
         self._data = None
 
-    def build(self, cloud: ParticleBuffers, lights: wp.array, samples: int = 4) -> LightMap:
-        """The map of ``cloud`` (its bounding ball ``centre``, ``R``) for every light."""
+    def build(self, cloud: ParticleBuffers, lights: wp.array, samples: int = 4,
+              blocks: BlockCloud | None = None) -> LightMap:
+        """The map of ``cloud`` (its bounding ball ``centre``, ``R``) for every light.
+        ``blocks``: the same cloud as instances of templates (every particle in one); its
+        orthographic faces (directional lights) are then made from one light impostor per
+        template and face (``template_light``, b work) splatted once per instance
+        (``splat_blocks``, N / b), the paper's block light pass; other faces per particle."""
+        self._blocks = blocks
         kind = REPRESENTATIONS.index(self.representation)
         if (kind == EXACT or self.tolerance > 0.0) and cloud.struct.centres.shape[0] and cloud.bvh is None:
             raise ValueError("the exact light pass (and a map's check against it) needs the cloud's BVH "
@@ -556,10 +660,24 @@ class LightPass:
         else:
             self._data = wp.zeros(texels * C, dtype=wp.vec3, device=dev_)
             m.data = self._data
-            if n:
+            blocks = self._blocks if any(f[7] for f in faces) else None
+            self.template_texels = 0
+            if n and blocks is not None and blocks.n_instances:
+                R = max(float(cloud.R), 1e-9)
+                # a template texel as wide as a map texel (2 R / M across an orthographic face)
+                T = int(np.clip(np.ceil(blocks.reach_max * M / R), 2, MAX_TEMPLATE_TEXELS))
+                cells = wp.zeros(blocks.n_templates * len(faces) * T * T, dtype=wp.vec3, device=dev_)
+                r_cell = float(np.median(cloud.radius)) * T / (2.0 * blocks.reach_max)  # a sphere's radius in cells
+                dev.launch_private(template_light, blocks.n_offsets * len(faces),
+                                   [blocks.struct, blocks.owner, blocks.reach, m, T], cells, merge_maps, dev_,
+                                   work=max(1.0, 4.0 * r_cell * r_cell))
+                dev.launch_private(splat_blocks, blocks.n_instances * len(faces), [blocks.struct, m, T, cells],
+                                   self._data, merge_maps, dev_, work=C * max(1.0, (M * blocks.reach_max / R) ** 2))
+                self.template_texels = T
+            if n and (blocks is None or not all(f[7] for f in faces)):
                 footprint = (M * float(np.median(cloud.radius)) / max(float(cloud.R), 1e-9)) ** 2  # texels a sphere covers
-                dev.launch_private(splat_spheres, n * len(faces), [cloud.struct, m], self._data, merge_maps, dev_,
-                                   work=C * max(1.0, footprint))
+                dev.launch_private(splat_spheres, n * len(faces), [cloud.struct, m, int(blocks is not None)], self._data,
+                                   merge_maps, dev_, work=C * max(1.0, footprint))
             if kind == SLICES:
                 dev.launch(accumulate_slices, texels, [C, self._data], dev_)
         m.data = self._data

@@ -77,6 +77,37 @@ def particle_optical_depth(P: Particles, skip: int, x: wp.vec3, w: wp.vec3, t0: 
     return tau
 
 
+@wp.struct
+class Blocks:
+    """A cloud built of blocks (Umenhoffer & Szirmay-Kalos 2005): K instances of templates,
+    a template's particles offsets from its centre, all of one radius and medium."""
+    centre: wp.array(dtype=wp.vec3)  # per instance
+    tpl: wp.array(dtype=int)  # per instance: its template
+    reach: wp.array(dtype=float)  # per instance: the template's bounding radius
+    first: wp.array(dtype=int)  # per template: its first particle offset
+    count: wp.array(dtype=int)  # per template: b
+    offsets: wp.array(dtype=wp.vec3)
+    radius: wp.array(dtype=float)  # per template (one medium each)
+    sigma_t: wp.array(dtype=wp.vec3)
+    albedo: wp.array(dtype=wp.vec3)
+    texel0: wp.array(dtype=int)  # per template: its first impostor texel (-1: one particle, no texture)
+    res: int  # T
+
+
+class BlockCloud:
+    """A ``Blocks`` struct with what the host needs of it: ``reach`` (per template, device),
+    its largest value ``reach_max``, ``owner`` (per template particle: its template), and
+    the counts of instances, templates and template particles."""
+
+    def __init__(self, struct: Blocks, reach: wp.array, n_instances: int):
+        self.struct, self.reach, self.n_instances = struct, reach, int(n_instances)
+        counts = struct.count.numpy()
+        self.n_templates, self.n_offsets = len(counts), int(counts.sum())
+        self.reach_max = float(reach.numpy().max()) if reach.shape[0] else 0.0
+        self.owner = wp.array(np.repeat(np.arange(len(counts), dtype=np.int32), counts), dtype=int,
+                              device=reach.device)
+
+
 class ParticleBuffers:
     """Owns the device arrays and hash grid behind a ``Particles`` struct.
 

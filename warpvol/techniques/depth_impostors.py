@@ -20,7 +20,8 @@ one block of b particles, so a frame renders the block once (b) and then its ins
   opacity map of ``light_terms`` terms instead (Jansen and Bavoil 2010); 0: exact. The sky
   (the scene's background, the paper's "sky color" in figure 2) is light too: from
   ``sky_samples`` directions over the sphere (``upload.sky_lights``), each with its own
-  light pass on a quarter of the sun's texels (sky light is soft); not built for a black sky.
+  light pass on a quarter of the sun's texels (sky light is soft), exact where ``light_pass`` = 0;
+  not built for a black sky.
 * ``templates``: whether the blocks' templates changed; when an animation only moves the
   instances, the impostors stay cached.
 * ``impostors`` (reads the camera): each template block's depth impostor for the camera
@@ -60,7 +61,7 @@ from ..geometry.intersect import ray_sphere
 from ..geometry.mesh import Surfaces, occluded, surface_hit
 from ..geometry.raster import RasterView, TileLists, bin_spheres, pixel_ray, pixel_tile
 from ..media.lightpass import REPRESENTATIONS, LightMap, LightPass, optical_depth_to_light
-from ..media.particles import ParticleBuffers, Particles
+from ..media.particles import BlockCloud, Blocks, ParticleBuffers, Particles
 from ..physics.brdf import brdf_eval
 from ..physics.constants import INF, PI, RAY_EPS
 from ..physics.lights import Light, light_incident
@@ -76,9 +77,13 @@ SETTINGS = {
     "cluster": Setting(1, 1, 100000, "a cloud not built of blocks is grouped into blocks of this many particles "
                                      "(neighbours in Morton order); 1: every particle on its own"),
     "slices": Setting(4, 1, 1024, "light-pass depth slices S (the paper: 4, in one RGBA texture)"),
-    "light_pass": Setting(1, 0, 2, "0 exact transmittance (BVH ray queries), 1 depth slices, 2 Fourier opacity map"),
+    "light_pass": Setting(1, 0, 2, "0 exact transmittance (BVH ray queries; the sky's too), 1 depth slices, "
+                                    "2 Fourier opacity map (the sky: depth slices for 1 and 2)"),
     "light_terms": Setting(8, 1, 256, "Fourier terms K (light_pass = 2)"),
     "light_texels": Setting(0, 0, 1024, "light-pass texels per face side; 0: 4 R / r (half a median radius)"),
+    "light_blocks": Setting(1, 0, 1, "1: a cloud built of blocks is splatted into the light pass block by block, "
+                                     "from one light impostor per template (section 2, b + N / b work; directional "
+                                     "lights and the sky); 0: particle by particle"),
     "light_samples": Setting(4, 1, 1024, "points of a one-particle instance whose light is averaged"),
     "sky_samples": Setting(8, 0, 256, "directions the sky's light (the scene's background) is gathered from, each "
                                        "through its own coarse light pass; 0: no sky light"),
@@ -88,22 +93,6 @@ SETTINGS = {
     "object_depth": Setting(1, 0, 1, "1: depth impostors (a block's opacity cut where a surface lies inside its "
                                      "depth interval); 0: billboards (a block at its centre plane, as the paper fixes)"),
 }
-
-
-@wp.struct
-class Blocks:
-    """K instances of templates; a template's particles are offsets from its centre."""
-    centre: wp.array(dtype=wp.vec3)  # per instance
-    tpl: wp.array(dtype=int)  # per instance: its template
-    reach: wp.array(dtype=float)  # per instance: the template's bounding radius
-    first: wp.array(dtype=int)  # per template: its first particle offset
-    count: wp.array(dtype=int)  # per template: b
-    offsets: wp.array(dtype=wp.vec3)
-    radius: wp.array(dtype=float)  # per template (one medium each)
-    sigma_t: wp.array(dtype=wp.vec3)
-    albedo: wp.array(dtype=wp.vec3)
-    texel0: wp.array(dtype=int)  # per template: its first impostor texel (-1: one particle, no texture)
-    res: int  # T
 
 
 @wp.struct
@@ -439,7 +428,8 @@ class DepthImpostors(Technique):
         return self.uploads.stages() + [
             Stage("blocks", self._blocks, reads=("medium",), settings=("impostor_res", "cluster", "light_pass")),
             Stage("light", self._light, reads=("lights", "background"),
-                  settings=("slices", "light_pass", "light_terms", "light_texels", "light_samples", "sky_samples"),
+                  settings=("slices", "light_pass", "light_terms", "light_texels", "light_samples", "sky_samples",
+                            "light_blocks"),
                   after=("blocks", "lights")),
             Stage("templates", self._templates, after=("blocks",)),
             Stage("impostors", self._impostors, reads=("camera",), after=("templates",)),
@@ -552,13 +542,16 @@ class DepthImpostors(Technique):
         s = self.settings
         self.light_pass = LightPass(self.device, REPRESENTATIONS[s["light_pass"]], slices=s["slices"],
                                     terms=s["light_terms"], texels=s["light_texels"])
-        self.light_pass.build(self._cloud, self.uploads.lights, s["light_samples"])
+        blocks = None  # the block light pass: where every particle is in a block of several
+        if s["light_blocks"] and self.n_instances and self.n_textured == self.n_instances:
+            blocks = BlockCloud(self.blocks, self._reach_t, self.n_instances)
+        self.light_pass.build(self._cloud, self.uploads.lights, s["light_samples"], blocks)
         self.sky = sky_lights(self.scene.background, s["sky_samples"], self.device)
         self.sky_pass = None
-        if self.sky is not None:  # soft light: slices on a quarter of the sun's texels
-            self.sky_pass = LightPass(self.device, "slices", slices=s["slices"],
+        if self.sky is not None:  # soft light: slices on a quarter of the sun's texels; exact with the sun's
+            self.sky_pass = LightPass(self.device, "exact" if s["light_pass"] == 0 else "slices", slices=s["slices"],
                                       texels=max(16, (self.light_pass.M or 64) // 4))
-            self.sky_pass.build(self._cloud, self.sky, s["light_samples"])
+            self.sky_pass.build(self._cloud, self.sky, s["light_samples"], blocks)
 
     def _impostors(self):
         pc = pinhole(self.scene.camera)  # the camera's frame, right and up scaled by the field of view
@@ -642,12 +635,15 @@ class DepthImpostors(Technique):
         ``block_reach`` (instances): each one's centre and bounding radius, world units;
         ``light_texels``: the light pass's texels per face side (0 before it is built);
         ``light_refined``: how often its map was refined to meet its tolerance;
-        ``light_fell_back``: whether it fell back to exact transmittance."""
+        ``light_fell_back``: whether it fell back to exact transmittance;
+        ``light_template_texels``: texels a side of each template's light impostor (0: the
+        light pass splatted particle by particle)."""
         return {"instances": self.n_instances, "block_centres": self.blocks.centre.numpy(),
                 "block_reach": self.blocks.reach.numpy(),
                 "light_texels": self.light_pass.M if self.light_pass is not None else 0,
                 "light_refined": len(self.light_pass.refined) if self.light_pass is not None else 0,
-                "light_fell_back": bool(self.light_pass is not None and self.light_pass.fell_back)}
+                "light_fell_back": bool(self.light_pass is not None and self.light_pass.fell_back),
+                "light_template_texels": self.light_pass.template_texels if self.light_pass is not None else 0}
 
     def arrays(self, for_view: bool = False, resolution: int = 128) -> dict:
         """The instances (centres, bounding radii), the first textured template's impostor
