@@ -146,11 +146,13 @@ class PeakMemory:
         self.mb = max(self.mb, 0.0)
 
 
-def time_frames(renderer: wv.Renderer, repeats: int, invalidate: tuple[str, ...] | None = ()) -> dict:
+def time_frames(renderer: wv.Renderer, repeats: int, invalidate: tuple[str, ...] | None = (),
+                before=None) -> dict:
     """Time ``repeats`` frames after a warm-up frame.
 
     ``invalidate``: scene parts marked changed before each frame (``()``: all parts, so every
-    stage the scene calls for runs; ``None``: none, as for a static scene).
+    stage the scene calls for runs; ``None``: none, as for a static scene). ``before``: a
+    callable run before each timed frame, untimed (an animation's update).
     """
     t0 = time.perf_counter()
     renderer.render()
@@ -159,6 +161,8 @@ def time_frames(renderer: wv.Renderer, repeats: int, invalidate: tuple[str, ...]
     for _ in range(repeats):
         if invalidate is not None:
             renderer.touch(*invalidate)
+        if before is not None:
+            before()
         t = time.perf_counter()
         frame = renderer.render()
         times.append(time.perf_counter() - t)

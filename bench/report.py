@@ -131,18 +131,23 @@ def paper_section(rows: list[dict], png: Path) -> list[str]:
     ours = [1000.0 / r["median_ms"] for r in rows]
     paper = [r["paper"] if isinstance(r.get("paper"), (int, float)) else None for r in rows]
     p0 = paper[0]
+    # rows of several set-ups (params "setup"): each divided by its own set-up's first row
+    first = {}
+    for r, o in zip(rows, ours):
+        first.setdefault(r["params"].get("setup"), o)
+    base = [first[r["params"].get("setup")] for r in rows]
     it = "iteration_ms" in rows[0]  # illumination networks: one iteration timed alone
     lines = ["| parameters | paper FPS | ours FPS | paper ÷ first row | ours ÷ first row | stages ran (ms) | peak MB |"
              + (" one iteration ms | GFLOP/s | of FP32 peak | network build ms |" if it else ""),
              "|---|---|---|---|---|---|---|" + ("---|---|---|---|" if it else "")]
-    for r, o, p in zip(rows, ours, paper):
+    for r, o, p, b in zip(rows, ours, paper, base):
         extra = ""
         if it:
             frac = r.get("peak_fraction")
             extra = (f" {r['iteration_ms']:.2f} | {r['gflops']:.1f} | {f'{100 * frac:.1f}%' if frac else '–'} | "
                      f"{r['network_ms']:.1f} |")
         lines.append(f"| {_params(r)} | {_fmt(p)} | {o:.1f} | {_fmt(p / p0 if p and p0 else None)} | "
-                     f"{o / ours[0]:.3f} | {_stages(r)} | {r['peak_mem_mb']:.0f} |" + extra)
+                     f"{o / b:.3f} | {_stages(r)} | {r['peak_mem_mb']:.0f} |" + extra)
     if it and rows[0].get("peak_gflops"):
         lines += ["", f"FP32 peak taken as {rows[0]['peak_gflops']:.0f} GFLOP/s (for a CPU: cores × clock × SIMD "
                   "lanes × 2, one FMA unit per core; for a GPU the vendor's figure). One iteration is "
@@ -152,7 +157,10 @@ def paper_section(rows: list[dict], png: Path) -> list[str]:
     plt = _plt()
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     x = np.arange(len(rows))
-    ax.plot(x, [o / ours[0] for o in ours], "o-", label=f"ours ({rows[0]['device']})")
+    for setup in first:
+        k = [i for i, r in enumerate(rows) if r["params"].get("setup") == setup]
+        ax.plot(x[k], [ours[i] / first[setup] for i in k], "o-",
+                label=f"ours ({rows[0]['device']}{f', {setup} set-up' if setup else ''})")
     if p0:
         ax.plot(x, [p / p0 if p else np.nan for p in paper], "s--", label="paper")
     ax.set_xticks(x, [_params(r) for r in rows], rotation=30, ha="right", fontsize=7)
@@ -426,5 +434,7 @@ def write_report(out: Path, name: str) -> Path | None:
         if png.exists():
             md += [f"![{name}]({png.name})", ""]
         md += section + [""]
+    if sweep.note:
+        md += [sweep.note]
     (folder / "README.md").write_text("\n".join(md))
     return folder / "README.md"

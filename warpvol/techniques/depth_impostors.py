@@ -21,7 +21,12 @@ one block of b particles, so a frame renders the block once (b) and then its ins
   (the scene's background, the paper's "sky color" in figure 2) is light too: from
   ``sky_samples`` directions over the sphere (``upload.sky_lights``), each with its own
   light pass on a quarter of the sun's texels (sky light is soft), exact where ``light_pass`` = 0;
-  not built for a black sky.
+  not built for a black sky. Where every particle is in a block of several
+  (``light_blocks`` = 1), a directional light's map (the sun's, the sky's) is made block by
+  block, the paper's b + N / b: each template rendered once from the light into a light
+  impostor (per cell: the chords' total length and the mean and variance of their depth),
+  and each instance splatted from it into the slices, its chords through a texel merged
+  into one segment of the same mean and spread. Point and spot lights stay per particle.
 * ``templates``: whether the blocks' templates changed; when an animation only moves the
   instances, the impostors stay cached.
 * ``impostors`` (reads the camera): each template block's depth impostor for the camera
