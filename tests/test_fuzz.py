@@ -113,6 +113,10 @@ def media(draw, kind=None):
     points = (np.asarray(centre) + np.random.default_rng(draw(st.integers(0, 1000))).normal(0, 0.4, (count, 3))).tolist()
     radius = draw(finite(0.02, 0.6))
     if kind == "rbf":
+        if draw(st.booleans()):  # each Gaussian its own radius and amplitude (some amplitudes 0)
+            radius = [draw(finite(0.02, 0.6)) for _ in range(count)]
+            return {"type": kind, "centers": points, "radius": radius, "peak": sigma,
+                    "amplitude": [draw(finite(0.0, 3.0)) for _ in range(count)], **common}
         return {"type": kind, "centers": points, "radius": radius, "peak": sigma, **common}
     return {"type": kind, "positions": points, "radius": radius, "sigma_t": sigma, **common}
 
