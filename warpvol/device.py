@@ -143,6 +143,21 @@ def launch(kernel, dim: int, inputs: list, device: str, split: bool = True, min_
     _run_chunks(kernel, device, n, [chunk(k) for k in range(chunks) if bounds[k + 1] > bounds[k]])
 
 
+_scratch_pool: dict = {}
+
+
+def _scratch(out, k: int):
+    """Core k's private copy of ``out``: a view of a buffer kept between launches (a fresh
+    allocation of tens of MB costs more in page faults than the launch itself), set to ``out``."""
+    key = (str(out.device), out.dtype, k)
+    buf = _scratch_pool.get(key)
+    if buf is None or buf.shape[0] < out.shape[0]:
+        buf = _scratch_pool[key] = wp.empty(max(out.shape[0], 1024), dtype=out.dtype, device=out.device)
+    view = buf[: out.shape[0]]
+    wp.copy(view, out)
+    return view
+
+
 def launch_private(kernel, dim: int, inputs: list, out, merge, device: str, work: float | None = None):
     """Launch ``kernel`` (arguments: offset, *inputs, out) over ``dim`` threads that combine their
     results into ``out`` with atomics, ``out`` holding the combination's identity beforehand.
@@ -156,7 +171,7 @@ def launch_private(kernel, dim: int, inputs: list, out, merge, device: str, work
     if n <= 1 or dim < MIN_SPLIT // 8 or (work is not None and dim * work < out.shape[0] * (n - 1)):
         wp.launch(kernel, dim=dim, inputs=[0, *inputs, out], device=device)
         return
-    copies = [out] + [wp.clone(out) for _ in range(n - 1)]
+    copies = [out] + [_scratch(out, k) for k in range(1, n)]
     chunks = 4 * n
     bounds = [dim * k // chunks for k in range(chunks + 1)]
 

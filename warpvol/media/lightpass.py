@@ -551,9 +551,11 @@ class LightPass:
     ``tolerance`` > 0: after a build, ``check`` measures the map against the exact answer on
     up to ``check_particles`` particles (at the same ``samples`` points of each as the render
     reads); above the tolerance the map is refined (texels per side and slices or terms
-    doubled, or the texels alone where both do not fit) up to ``REFINE_ROUNDS`` times within ``MAX_BYTES``, and only
+    scaled by up to 2 after the error's excess, or the texels alone where both do not fit) up to ``REFINE_ROUNDS`` times within ``MAX_BYTES``, and only
     then falls back to exact. ``refined`` lists each rejected map's (M, C, error), ``error``
-    is the last map's and ``fell_back`` says whether exact was taken.
+    is the last map's and ``fell_back`` says whether exact was taken. A later build of the
+    same cloud (its count, radius and bounding ball) and kinds of faces, with its lights moved,
+    starts at the resolution the last one ended at.
     """
 
     def __init__(self, device, representation: str = "slices", slices: int = 16, terms: int = 8, texels: int = 0,
@@ -573,6 +575,8 @@ class LightPass:
         self.template_texels = 0  # texels a side of each template's light impostor (0: no block light pass)
         self._blocks: BlockCloud | None = None
         self._data = None
+        self._start = None  # (cloud and faces, M, C) where the last checked build ended
+        self._buffer = None  # the map's storage, kept between builds
 
     def build(self, cloud: ParticleBuffers, lights: wp.array, samples: int = 4,
               blocks: BlockCloud | None = None) -> LightMap:
@@ -615,17 +619,21 @@ class LightPass:
                             right, up = np.eye(3)[(a + 1) % 3], np.eye(3)[(a + 2) % 3]
                             faces.append((pos, fwd, right, up, 1.0, 0.0, d + R, 0))
             face_count.append(len(faces) - first_face[-1])
+        # the same cloud and faces as a build before: start at the resolution it ended at
+        key = (kind, n, round(float(R), 6), round(float(np.median(radius)), 6), tuple(f[7] for f in faces))
+        if self.tolerance > 0.0 and self._start is not None and self._start[0] == key:
+            M, C = max(M, self._start[1]), max(C, self._start[2])
         if kind != EXACT and faces:  # the memory bound: F M^2 C vec3 of 12 bytes
             M = max(1, min(M, int(np.sqrt(MAX_BYTES / (12.0 * C * len(faces))))))
         self.error, self.fell_back, self.refined = None, False, []
         m = self._splat(cloud, kind, faces, first_face, face_count, M, C)
         if kind != EXACT and self.tolerance > 0.0 and n and len(faces):
             self.error = self.check(cloud, lights, samples)
-            # above the tolerance: refine (texels per side and slices or terms doubled) while the
-            # map fits MAX_BYTES, up to REFINE_ROUNDS times; only then fall back to exact
+            # above the tolerance: refine while the map fits MAX_BYTES, up to REFINE_ROUNDS times;
+            # only then fall back to exact
             while self.error > self.tolerance and len(self.refined) < REFINE_ROUNDS:
-                finer = [(2 * M, 2 * C - 1), (2 * M, C)]  # texels and slices (or terms) doubled, else texels
-                fits = [(m2, c2) for m2, c2 in finer if m2 <= MAX_TEXELS and 12.0 * c2 * len(faces) * m2 * m2 <= MAX_BYTES]
+                fits = [(m2, c2) for m2, c2 in self._finer(kind, M, C, self.error)
+                        if m2 <= MAX_TEXELS and 12.0 * c2 * len(faces) * m2 * m2 <= MAX_BYTES]
                 if not fits:
                     break
                 self.refined.append((M, C, self.error))
@@ -635,7 +643,17 @@ class LightPass:
             if self.error > self.tolerance:
                 self.fell_back = True
                 m.kind = EXACT
+            self._start = (key, M, C)
         return m
+
+    def _finer(self, kind: int, M: int, C: int, error: float) -> list[tuple[int, int]]:
+        """The next (M, C) to try after a map of ``error``: texels a side and slices (or terms)
+        scaled by f = 1.2 error / tolerance within [1.25, 2] (the map's error falls about as 1 / f,
+        first order in both), else the texels alone."""
+        f = float(np.clip(1.2 * error / self.tolerance, 1.25, 2.0))
+        m2 = int(np.ceil(M * f))
+        c2 = int(np.ceil((C - 1) * f)) + 1 if kind == SLICES else 2 * int(np.ceil((C - 1) // 2 * f)) + 1
+        return [(m2, c2), (m2, C)]
 
     def _splat(self, cloud: ParticleBuffers, kind: int, faces: list, first_face: list, face_count: list, M: int,
                C: int) -> LightMap:
@@ -658,7 +676,10 @@ class LightPass:
         if kind == EXACT or not texels:
             self._data = wp.zeros(1, dtype=wp.vec3, device=dev_)
         else:
-            self._data = wp.zeros(texels * C, dtype=wp.vec3, device=dev_)
+            if self._buffer is None or self._buffer.shape[0] < texels * C:  # kept: a fresh one costs page faults
+                self._buffer = wp.empty(texels * C, dtype=wp.vec3, device=dev_)
+            self._data = self._buffer[: texels * C]
+            self._data.zero_()
             m.data = self._data
             blocks = self._blocks if any(f[7] for f in faces) else None
             self.template_texels = 0

@@ -511,6 +511,7 @@ class IlluminationNetwork(Technique):
         # direct and emission stages
         self.direct = self.travel = self.light_weight = None
         self.light_pass: LightPass | None = None  # its map, measured error and fallback
+        self._light_args = None
         # iterate stage
         self.I = self.I_next = self.E = self.S = None
         self.scale = 1.0
@@ -617,9 +618,12 @@ class IlluminationNetwork(Technique):
         n, L = self._n, len(self.scene.lights)
         self.direct = wp.zeros(max(n * L, 1), dtype=wp.vec3, device=self.device)
         self.travel = wp.zeros(max(n * L, 1), dtype=wp.vec3, device=self.device)
-        self.light_pass = LightPass(self.device, REPRESENTATIONS[s["light_pass"]], slices=s["light_slices"],
-                                    terms=s["light_terms"], texels=s["light_texels"], tolerance=s["light_tolerance"],
-                                    check_particles=64)
+        args = (REPRESENTATIONS[s["light_pass"]], s["light_slices"], s["light_terms"], s["light_texels"],
+                s["light_tolerance"])
+        if self.light_pass is None or self._light_args != args:  # kept, so a moved light starts where it ended
+            self.light_pass = LightPass(self.device, args[0], slices=args[1], terms=args[2], texels=args[3],
+                                        tolerance=args[4], check_particles=64)
+            self._light_args = args
         if n and L:
             self.light_pass.build(self._particles, self.uploads.lights, s["light_samples"])
             self.light_pass.direct(self._particles, self.uploads.lights, s["light_samples"], self.direct, self.travel)
