@@ -600,6 +600,53 @@ def _lightpass_accuracy(params: dict, device: str, quick: bool) -> dict:
     return row
 
 
+def _lightpass_scaling_grid(quick: bool) -> list[dict]:
+    return [{"n": n} for n in ((128, 256) if quick else (1024, 2048, 4096, 8192))]
+
+
+def _lightpass_scaling(params: dict, device: str, quick: bool) -> dict:
+    """The light pass as particles get finer: ``n`` particles of radius 0.12 (1024 / n)^(1/3)
+    with sigma_t r fixed (each particle as thick as at n = 1024, the cloud thicker as n^(1/3)),
+    both suns turning 3 degrees a frame about y, D = 128, at the default light_tolerance. The
+    direct stage's time per frame, and where the map ended: texels a side, refinements in the
+    last frame, its measured error, and whether it fell back to exact chords."""
+    n, w = params["n"], (32 if quick else 128)
+    base = network_scene(False, 1024, w)  # radius 0.12 and its sigma_t at n = 1024
+    radius = 0.12 * (1024 / n) ** (1 / 3)
+    d = particle_cloud_dict(base, n, radius, (np.asarray(base.media[0].sigma_t) * 0.12 / radius).tolist())
+    scene = wv.load_scene(d)
+    r = wv.Renderer(scene, technique="illumination_network", device=device, directions=128, iterations=1)
+    lights = list(scene.lights)
+    turn = [0]
+
+    def move():
+        turn[0] += 1
+        a = np.radians(3.0 * turn[0])
+        rot = np.array([[np.cos(a), 0.0, np.sin(a)], [0.0, 1.0, 0.0], [-np.sin(a), 0.0, np.cos(a)]])
+        r.update(lights=[dataclasses.replace(light, direction=tuple(rot @ np.asarray(light.direction, float)))
+                         if light.type == "directional" else light for light in lights])
+
+    row = time_frames(r, repeats=3 if quick else 8, invalidate=None, before=move)
+    diag = r.diagnostics()
+    row["table"] = {"direct ms": row["stages"]["direct"]["median_ms"], "texels": diag["light_texels"],
+                    "refined": diag["light_refined"], "error": diag["light_error"], "fell back": diag["light_fell_back"]}
+    row.update(scene=f"n particles of radius 0.12 (1024 / n)^(1/3), sigma_t r fixed, {w}x{w}, D = 128, 2 suns turning "
+                   "3 degrees a frame + sky, light_tolerance at its default")
+    return row
+
+
+def particle_cloud_dict(scene, n: int, radius: float, sigma_t: float) -> dict:
+    """``scene`` (a network_scene) as a table with ``n`` particles of ``radius`` and ``sigma_t``."""
+    from warpvol.scene.procedural import particle_cloud
+
+    d = particle_cloud()
+    d["camera"].update(width=scene.camera.width, height=scene.camera.height)
+    d["lights"] = [d["lights"][0], SUN2]
+    d["media"][0].update(generator={"kind": "cloud", "count": n, "seed": 1, "extent": 1.2}, radius=radius,
+                         sigma_t=sigma_t, albedo=0.9, phase={"type": "hg", "g": 0.0})
+    return d
+
+
 def _albedo_grid(quick: bool) -> list[dict]:
     return [{"albedo": a} for a in ((0.5,) if quick else (0.5, 0.8, 0.95))]
 
@@ -1315,6 +1362,10 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
           "exact transmittance (BVH) at 4, 16, 64 points a sphere, depth slices S = 4..64 and Fourier terms "
           "K = 4..32 at 16 points; the direct light per particle against the exact sphere mean, and the image",
           "illumination_network", "lightpass", _lightpass_grid, _lightpass_accuracy, issue=20),
+    Sweep("illumination-network-lightpass-scaling", "the shared light pass as particles get finer (1024..8192 "
+          "particles, radius ~ n^(-1/3), sigma_t r fixed, both suns turning 3 degrees a frame): the direct stage's ms "
+          "and the map it ended at (texels, refinements, error, fallback to exact)",
+          "illumination_network", "table", _lightpass_scaling_grid, _lightpass_scaling),
     Sweep("illumination-network-albedo", "Szirmay-Kalos et al. 2005's bound: the error of one step eps grows to at most "
           "eps / (1 - a); single- and multiple-scattering RMSE against the reference at albedo 0.5, 0.8, 0.95",
           "illumination_network", "bound", _albedo_grid, _albedo_bound, issue=6),

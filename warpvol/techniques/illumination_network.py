@@ -754,11 +754,12 @@ class IlluminationNetwork(Technique):
         """``window``: the window resolution M used; ``iterations``: iterations the last frames
         took (the convergence history's length); ``direct``: the direct light per particle
         (N x lights x 3); ``light_texels``: the light pass's texels per face side; ``light_refined``: how often its
-        map was refined to meet ``light_tolerance``; ``light_fell_back``: whether it fell back to
-        exact transmittance."""
+        map was refined to meet ``light_tolerance``; ``light_error``: its last map's measured
+        error (None: not checked); ``light_fell_back``: whether it fell back to exact transmittance."""
         return {"window": self.M, "iterations": len(self.history), "direct": self.direct.numpy(),
                 "light_texels": self.light_pass.M if self.light_pass is not None else 0,
                 "light_refined": len(self.light_pass.refined) if self.light_pass is not None else 0,
+                "light_error": self.light_pass.error if self.light_pass is not None else None,
                 "light_fell_back": bool(self.light_pass is not None and self.light_pass.fell_back)}
 
     def arrays(self, for_view: bool = False, resolution: int = 128) -> dict:
