@@ -1,4 +1,13 @@
-"""Shared fixtures: every device test runs on the CPU and on each CUDA device present."""
+"""Shared fixtures: every test that renders takes ``device``.
+
+``device`` runs a test on each device of ``WARPVOL_TEST_DEVICES`` (comma-separated: ``cpu``,
+``cuda`` for every CUDA device present, or ``cuda:N``), else on the CPU and every CUDA device
+present. With the switch set, tests that take no ``device`` render on its first device
+(``WARPVOL_DEVICE``), and tests marked ``cpu_only`` (they test the CPU's own launch split or
+run Dask workers on the CPU) skip when it leaves the CPU out. Tests of an optional package
+(OpenEXR, pyvista, Dask, Mitsuba, miepython, hypothesis) skip when it is not installed."""
+
+import os
 
 import numpy as np
 import pytest
@@ -8,14 +17,43 @@ import warpvol  # noqa: F401  (sets Warp quiet before initialisation)
 from warpvol import device as dev
 
 
-def _devices():
+def _devices() -> list[str]:
     dev.init()
-    return ["cpu"] + [str(d) for d in wp.get_cuda_devices()]
+    present = ["cpu"] + [str(d) for d in wp.get_cuda_devices()]
+    asked = os.environ.get("WARPVOL_TEST_DEVICES", "").strip()
+    if not asked:
+        return present
+    chosen = []
+    for name in (s.strip() for s in asked.split(",") if s.strip()):
+        match = [d for d in present if d == name or (name == "cuda" and d.startswith("cuda:"))]
+        if not match:
+            raise pytest.UsageError(f"WARPVOL_TEST_DEVICES={asked}: no device {name!r} here "
+                                    f"(allowed: cpu, cuda, cuda:N; present: {', '.join(present)})")
+        chosen += [d for d in match if d not in chosen]
+    os.environ["WARPVOL_DEVICE"] = chosen[0]
+    return chosen
 
 
-@pytest.fixture(params=_devices())
-def device(request):
-    return request.param
+DEVICES: list[str] = []
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "cpu_only: a test of the CPU itself; skipped when WARPVOL_TEST_DEVICES leaves the CPU out")
+    DEVICES[:] = _devices()
+
+
+def pytest_generate_tests(metafunc):
+    if "device" in metafunc.fixturenames:
+        metafunc.parametrize("device", DEVICES)
+
+
+def pytest_collection_modifyitems(config, items):
+    if "cpu" in DEVICES:
+        return
+    skip = pytest.mark.skip(reason=f"a test of the CPU; WARPVOL_TEST_DEVICES={','.join(DEVICES)}")
+    for item in items:
+        if "cpu_only" in item.keywords:
+            item.add_marker(skip)
 
 
 def two_seed_render(scene, device, **settings):

@@ -20,8 +20,8 @@ def out(tmp_path, monkeypatch):
     return tmp_path / "results"
 
 
-def test_quick_accuracy_sweep_end_to_end_and_resume(out, capsys):
-    assert main(["bench", "raymarch-accuracy", "--quick", "--device", "cpu", "--out", str(out)]) == 0
+def test_quick_accuracy_sweep_end_to_end_and_resume(device, out, capsys):
+    assert main(["bench", "raymarch-accuracy", "--quick", "--device", device, "--out", str(out)]) == 0
     path = out / "raymarch-accuracy" / "cpu-quick.json"
     rows = load_rows(path)
     assert len(rows) == len(SWEEPS["raymarch-accuracy"].points(quick=True))
@@ -38,17 +38,17 @@ def test_quick_accuracy_sweep_end_to_end_and_resume(out, capsys):
     assert "relative RMSE" in readme and (out / "raymarch-accuracy" / "cpu-quick.png").stat().st_size > 1000
     # run again: every point is there, nothing is measured twice
     stamp = [r["measured"] + str(r["median_ms"]) for r in rows]
-    assert main(["bench", "raymarch-accuracy", "--quick", "--device", "cpu", "--out", str(out)]) == 0
+    assert main(["bench", "raymarch-accuracy", "--quick", "--device", device, "--out", str(out)]) == 0
     assert [r["measured"] + str(r["median_ms"]) for r in load_rows(path)] == stamp
 
 
-def test_interrupted_sweep_keeps_its_rows_and_measures_the_rest(out):
+def test_interrupted_sweep_keeps_its_rows_and_measures_the_rest(device, out):
     sweep = SWEEPS["pipeline-overhead"]
     path = out / sweep.name / "cpu-quick.json"
-    assert main(["bench", sweep.name, "--quick", "--device", "cpu", "--out", str(out)]) == 0
+    assert main(["bench", sweep.name, "--quick", "--device", device, "--out", str(out)]) == 0
     rows = load_rows(path)
     write_rows(path, sweep, rows[:1], "test")  # as if stopped after the first row
-    assert main(["bench", sweep.name, "--quick", "--device", "cpu", "--out", str(out)]) == 0
+    assert main(["bench", sweep.name, "--quick", "--device", device, "--out", str(out)]) == 0
     again = load_rows(path)
     assert again[0] == rows[0] and len(again) == len(rows)
     cached = next(r for r in again if r["params"]["case"] == "all_cached")

@@ -16,6 +16,7 @@ def run(*args):
 
 
 def test_render_writes_exr_png_npy(tmp_path):
+    pytest.importorskip("OpenEXR")
     outs = [tmp_path / "a.exr", tmp_path / "a.png", tmp_path / "a.npy"]
     r = run("render", "fog-box", "--technique", "raymarch", "--set", "camera.width=40", "--set", "camera.height=30",
             "--set", "steps=32", "--timings", *sum((["--out", str(o)] for o in outs), []))
@@ -29,6 +30,7 @@ def test_render_writes_exr_png_npy(tmp_path):
 
 
 def test_exr_roundtrip_and_orientation(tmp_path):
+    pytest.importorskip("OpenEXR")
     img = np.zeros((4, 6, 3), np.float32)
     img[0, :, 0] = 1.0  # top row red
     img[:, -1, 2] = 2.5  # right column blue, HDR

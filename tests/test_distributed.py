@@ -15,13 +15,17 @@ from functools import partial
 
 import numpy as np
 import pytest
-from distributed import as_completed
+
+pytest.importorskip("distributed", reason="Dask is the [dask] extra")
+from distributed import as_completed  # noqa: E402
 
 import warpvol as wv
 from warpvol import cluster
 from warpvol.bench.harness import load_rows, measure_point, run_sweep, write_rows
 from warpvol.bench.sweeps import SWEEPS, Sweep
 from warpvol.cli import main
+
+pytestmark = pytest.mark.cpu_only  # Dask workers on the CPU (a GPU machine's would share its GPUs)
 
 #: What a row holds that depends neither on timing nor on when it ran (HEAD may move meanwhile)
 SAME = ("sweep", "technique", "params", "device", "host", "warp", "paper", "frames")

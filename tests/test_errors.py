@@ -191,9 +191,9 @@ def test_bad_numbers_on_the_command_line(tmp_path, capsys, args, says):
 
 
 @pytest.mark.parametrize("value", ["nan", "inf", "-inf"])
-def test_non_finite_setting_names_the_key(value):
+def test_non_finite_setting_names_the_key(device, value):
     with pytest.raises(wv.SettingsError) as err:
-        wv.render(scene(FOG), technique="raymarch", device="cpu", steps=float(value))
+        wv.render(scene(FOG), technique="raymarch", device=device, steps=float(value))
     msg = str(err.value)
     assert f"steps={float(value)!r} is not finite (allowed: 1.." in msg, msg
 
@@ -213,9 +213,9 @@ def test_setting_of_another_technique(tmp_path, capsys):
     assert "spp is a setting of reference, not of raymarch (allowed for raymarch: shadow_grid, shadow_steps" in err, err
 
 
-def test_technique_refusing_a_scene_names_media_not_counts():
+def test_technique_refusing_a_scene_names_media_not_counts(device):
     with pytest.raises(wv.SettingsError) as err:
-        wv.Renderer(scene(FOG, FOG), technique="illumination_network", device="cpu")
+        wv.Renderer(scene(FOG, FOG), technique="illumination_network", device=device)
     msg = str(err.value)
     assert "has media[0] of type homogeneous, media[1] of type homogeneous" in msg, msg
 

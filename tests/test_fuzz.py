@@ -36,7 +36,8 @@ from warpvol.pipeline import SettingsError  # noqa: E402
 
 EXAMPLES = int(os.environ.get("WARPVOL_FUZZ_EXAMPLES", "40"))
 FUZZ = settings(max_examples=EXAMPLES, derandomize=True, deadline=timedelta(seconds=120),
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large], database=None)
+                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.function_scoped_fixture],
+                database=None)  # the `device` fixture is a name, the same for every example
 
 #: Each technique at settings that keep a render to milliseconds.
 TINY = {
@@ -152,7 +153,7 @@ def scenes(draw):
 
 @FUZZ
 @given(scene=scenes())
-def test_valid_scenes_render_finite_and_non_negative(scene):
+def test_valid_scenes_render_finite_and_non_negative(device, scene):
     """Every technique that accepts a random valid scene renders it finite and non-negative;
     the reference and raymarch accept every scene."""
     loaded = wv.load_scene(scene)
@@ -160,7 +161,7 @@ def test_valid_scenes_render_finite_and_non_negative(scene):
     runs.append(("depth_impostors", {**TINY["depth_impostors"], "cluster": 3}))  # a cloud grouped into blocks
     for technique, tiny in runs:
         try:
-            image = wv.render(loaded, technique=technique, device="cpu", **tiny).image
+            image = wv.render(loaded, technique=technique, device=device, **tiny).image
         except SettingsError:
             assert technique not in ("reference", "raymarch"), technique
             continue

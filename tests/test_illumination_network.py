@@ -248,9 +248,9 @@ def test_one_iteration_per_frame_runs_until_settled(device):
     assert runs[-1] == "cached" and r.technique.converged
 
 
-def test_rejects_scenes_it_cannot_render():
+def test_rejects_scenes_it_cannot_render(device):
     with pytest.raises(wv.SettingsError, match="particle media only"):
-        wv.Renderer("fog-box", "illumination_network", device="cpu")
+        wv.Renderer("fog-box", "illumination_network", device=device)
 
 
 def test_refreshing_k_directions_a_frame_catches_up_with_a_full_rebuild(device):

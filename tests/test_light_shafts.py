@@ -27,7 +27,7 @@ def pillar_scene(light=None, width=48, height=36, sigma_t=0.3, surfaces=True):
     return d
 
 
-def shafts(scene, device="cpu", **kw):
+def shafts(scene, device, **kw):
     return wv.render(scene, technique="light_shafts", device=device, **kw)
 
 
@@ -73,27 +73,27 @@ def test_block_sum_gathers_all_n_samples(device, steps, block):
     np.testing.assert_allclose(inter, full, rtol=1e-4)
 
 
-def test_interleaving_recovers_most_of_the_n_sample_quality():
+def test_interleaving_recovers_most_of_the_n_sample_quality(device):
     """The paper's claim, at 400 x 300: N = 64 dealt over 4 x 4 pixels (4 samples per pixel) is
     far closer to the converged image than 4 samples per pixel on their own. Neighbouring rays
     differ, so it does not reach 64 per pixel; results/light-shafts has the numbers."""
     scene = pillar_scene(width=400, height=300)
-    conv = shafts(scene, steps=512, block=1, jitter=0).image
+    conv = shafts(scene, device, steps=512, block=1, jitter=0).image
 
     def err(**kw):
-        return np.abs(shafts(scene, jitter=0, **kw).image - conv).mean() / conv.mean()
+        return np.abs(shafts(scene, device, jitter=0, **kw).image - conv).mean() / conv.mean()
 
     inter, four = err(steps=64, block=4), err(steps=4, block=1)
     assert inter < 0.5 * four, (inter, four)
 
 
-def test_against_the_reference_single_scattering():
+def test_against_the_reference_single_scattering(device):
     """The reference (pixel centres, single scattering) is unbiased; light_shafts' error is the
     shadow-map and step discretisation, measured in results/; here: the image means agree
     within 2% (Monte Carlo noise of the mean at 256 spp is about 0.2%)."""
     scene = pillar_scene(width=32, height=24)
-    ref = wv.render(scene, technique="reference", device="cpu", spp=256, max_bounces=1, pixel_area=0).image
-    img = shafts(scene, steps=128, block=1).image
+    ref = wv.render(scene, technique="reference", device=device, spp=256, max_bounces=1, pixel_area=0).image
+    img = shafts(scene, device, steps=128, block=1).image
     assert abs(img.mean() - ref.mean()) / ref.mean() < 0.02
 
 
@@ -228,55 +228,55 @@ def test_depth_aware_block_sum_removes_the_halo(device):
     assert np.abs(aware - plain)[smooth].max() <= 1e-5 * plain.max()
 
 
-def test_heterogeneous_grid_medium_matches_raymarch():
+def test_heterogeneous_grid_medium_matches_raymarch(device):
     scene = wv.load_scene("smoke-grid", ["camera.width=40", "camera.height=30"])
     # light_shafts leaves the sky's light out (frame.leaves_out): raymarch without it too
-    base = wv.render(scene, technique="raymarch", steps=128, shadow_steps=64, sky_samples=0).image
-    img = shafts(scene, steps=128, block=1, jitter=0, shadow_steps=64, shadow_map_res=1024).image
+    base = wv.render(scene, technique="raymarch", device=device, steps=128, shadow_steps=64, sky_samples=0).image
+    img = shafts(scene, device, steps=128, block=1, jitter=0, shadow_steps=64, shadow_map_res=1024).image
     assert np.abs(img - base).mean() / base.mean() < 0.02
 
 
 # --- hard cases ----------------------------------------------------------------------------
 
-def test_light_inside_the_medium_next_to_a_surface():
+def test_light_inside_the_medium_next_to_a_surface(device):
     light = {"type": "point", "position": [0.0, 0.02, -1.0], "intensity": 4.0}  # 2 cm above the floor
-    img = shafts(pillar_scene(light), steps=64, block=4).image
+    img = shafts(pillar_scene(light), device, steps=64, block=4).image
     assert np.isfinite(img).all() and (img >= 0).all()
     assert img.max() < 1e4  # 1/d^2 sampled at step positions stays bounded
 
 
-def test_camera_in_shadow():
+def test_camera_in_shadow(device):
     scene = pillar_scene()
     scene["camera"]["origin"] = [0.15, 1.0, 0.2]  # behind the pillar, seen from the light
     scene["camera"]["target"] = [0.0, 1.0, 4.0]
-    frame = shafts(scene, steps=64, block=2)
+    frame = shafts(scene, device, steps=64, block=2)
     assert np.isfinite(frame.image).all() and frame.image.mean() > 0
 
 
-def test_grazing_rays():
+def test_grazing_rays(device):
     scene = pillar_scene()
     scene["camera"]["origin"] = [0.0, 1e-4, 4.0]
     scene["camera"]["target"] = [0.0, 1e-4, 0.0]
-    img = shafts(scene, steps=32, block=4).image
+    img = shafts(scene, device, steps=32, block=4).image
     assert np.isfinite(img).all() and (img >= 0).all()
 
 
-def test_no_occluders_skips_the_shadow_and_depth_passes():
-    frame = shafts(pillar_scene(surfaces=False), steps=16)
+def test_no_occluders_skips_the_shadow_and_depth_passes(device):
+    frame = shafts(pillar_scene(surfaces=False), device, steps=16)
     status = {n: s.status for n, s in frame.stages.items()}
     assert status["shadow_maps"] == status["surface"] == status["surfaces"] == "skipped"
     assert np.isfinite(frame.image).all() and frame.image.mean() > 0
 
 
-def test_zero_density_is_surfaces_only():
+def test_zero_density_is_surfaces_only(device):
     scene = pillar_scene(sigma_t=0.0)
-    a = shafts(scene, steps=32, block=4).image
-    b = shafts(scene, steps=32, block=4, scattering=0).image
+    a = shafts(scene, device, steps=32, block=4).image
+    b = shafts(scene, device, steps=32, block=4, scattering=0).image
     np.testing.assert_array_equal(a, b)
 
 
-def test_moving_the_camera_keeps_the_shadow_maps():
-    r = wv.Renderer(pillar_scene(), technique="light_shafts", device="cpu", steps=16)
+def test_moving_the_camera_keeps_the_shadow_maps(device):
+    r = wv.Renderer(pillar_scene(), technique="light_shafts", device=device, steps=16)
     r.render()
     r.update(camera=dict(pillar_scene()["camera"], origin=[0.5, 1.0, 4.0]))
     status = {n: s.status for n, s in r.render().stages.items()}

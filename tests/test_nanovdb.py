@@ -162,7 +162,7 @@ BAD = {
 
 
 @pytest.mark.parametrize("kind", sorted(BAD))
-def test_bad_file_is_one_line_naming_the_file_before_any_kernel(nvdb, tmp_path, monkeypatch, kind):
+def test_bad_file_is_one_line_naming_the_file_before_any_kernel(device, nvdb, tmp_path, monkeypatch, kind):
     make, key, problem = BAD[kind]
     path = tmp_path / f"{kind}.nvdb"
     make(path, nvdb)
@@ -174,7 +174,7 @@ def test_bad_file_is_one_line_naming_the_file_before_any_kernel(nvdb, tmp_path, 
     monkeypatch.setattr(wp.Volume, "load_from_nvdb", no_kernel)
     with pytest.raises(SceneError) as err:
         wv.render(scene({"file": str(path), "bounds_min": BMIN, "bounds_max": BMAX}), technique="raymarch",
-                  device="cpu")
+                  device=device)
     msg = str(err.value)
     assert "\n" not in msg and f"media[0].{key}: " in msg and str(path) in msg and problem in msg, msg
     assert "(allowed: " in msg, msg

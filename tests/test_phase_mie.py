@@ -3,6 +3,7 @@ d'Eon 2023 HG + Draine blend. Properties as for the other kinds (tests/test_phys
 kernels these tests launch: no new Warp module): normalised, sampled as evaluated, mean cosine;
 then against their sources (miepython, the paper's test vector) and against each other."""
 
+import importlib.util
 import math
 
 import numpy as np
@@ -14,6 +15,8 @@ from warpvol.physics import phase
 from warpvol.scene import SceneError, mie, scene_from_dict
 from warpvol.scene.model import Phase
 
+NEEDS_MIEPYTHON = pytest.mark.skipif(importlib.util.find_spec("miepython") is None,
+                                     reason="miepython is the [mie] extra")
 FIT_20 = mie.jendersie_deon(20.0)
 
 
@@ -124,6 +127,7 @@ def test_hg_draine_peaked_fits_sample_their_mean_cosine(device, name):
     assert abs(cos_s.mean() - mie.hg_draine_mean_cosine(f)) < 5 * cos_s.std() / math.sqrt(len(cos_s))
 
 
+@NEEDS_MIEPYTHON
 @pytest.mark.parametrize("sigma", [0.0, 0.3])
 def test_mie_table_is_normalised_and_resolves_the_peak(device, sigma):
     """Before ``tabulate`` rescales it, the trapezoid integral of the table is 1 up to what the
@@ -146,6 +150,7 @@ def test_mie_table_is_normalised_and_resolves_the_peak(device, sigma):
     assert g_table == pytest.approx(t.g_mean, abs=2e-3)
 
 
+@NEEDS_MIEPYTHON
 @pytest.mark.parametrize("diameter_um", [2.0, 10.0])
 def test_monodisperse_mie_table_equals_miepython(diameter_um):
     """sigma = 0 is one droplet size: at every node where the table evaluated Mie (both ends,
@@ -164,6 +169,7 @@ def test_monodisperse_mie_table_equals_miepython(diameter_um):
     np.testing.assert_allclose(table[pick], t.mean[pick] / (1 + t.norm_error[-1]), rtol=1e-6)
 
 
+@NEEDS_MIEPYTHON
 def test_mie_table_sampling_matches_pdf(device):
     """The binary-search sampler on a 262145-entry table: weight 1 and pdf = p, chi^2 p-value
     > 1e-3 with bin edges from the table's own nodes (exact CDF of the piecewise-linear pdf)."""
@@ -176,6 +182,7 @@ def test_mie_table_sampling_matches_pdf(device):
     assert abs(cos_s.mean() - t.g_mean) < 5 * cos_s.std() / math.sqrt(len(cos_s)) + 2e-3  # + table error, as above
 
 
+@NEEDS_MIEPYTHON
 def test_mie_and_hg_draine_agree_on_g_at_20um():
     """Mie (median 20 um, sigma = 0.1, mean of 650/550/450 nm) against the fit at d = 20 um.
     Tolerance 0.02, an estimate, not a measurement: the fit matches the shape of a spectrally
@@ -194,6 +201,7 @@ def scene_with(ph):
             "media": [{"type": "homogeneous", "size": [1, 1, 1], "sigma_t": 1.0, "albedo": 0.9, "phase": ph}]}
 
 
+@NEEDS_MIEPYTHON
 def test_scene_mie_and_hg_draine():
     s = scene_from_dict(scene_with({"type": "mie", "median_diameter_um": 10, "sigma": 0.3}))
     ph = s.media[0].phase

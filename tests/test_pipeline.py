@@ -82,20 +82,20 @@ def test_camera_and_settings_rerun_only_their_readers(device):
     (smoke(), dict(SMALL, shadow_grid=0), {"light_volume"}),  # marched shadow rays asked for
     ("point-in-fog", SMALL, {"light_volume", "surfaces"}),  # homogeneous: transmittance is exact; no walls
 ])
-def test_stages_the_scene_does_not_call_for_are_skipped(scene, settings, skipped):
-    frame = wv.render(scene, technique="raymarch", device="cpu", **settings)
+def test_stages_the_scene_does_not_call_for_are_skipped(device, scene, settings, skipped):
+    frame = wv.render(scene, technique="raymarch", device=device, **settings)
     assert {n for n, s in frame.stages.items() if s.status == "skipped"} == skipped
     assert all(s.status == "ran" for n, s in frame.stages.items() if n not in skipped)
 
 
-def test_timings_are_the_seconds_view_of_stages():
-    frame = wv.render(smoke(), technique="raymarch", device="cpu", **SMALL)
+def test_timings_are_the_seconds_view_of_stages(device):
+    frame = wv.render(smoke(), technique="raymarch", device=device, **SMALL)
     assert frame.timings == {n: s.ms / 1000.0 for n, s in frame.stages.items()}
     assert all(s.ms > 0.0 for s in frame.stages.values())
 
 
-def test_update_validates_like_the_loader():
-    r = wv.Renderer(smoke(), technique="raymarch", device="cpu", **SMALL)
+def test_update_validates_like_the_loader(device):
+    r = wv.Renderer(smoke(), technique="raymarch", device=device, **SMALL)
     with pytest.raises(wv.SceneError, match=r"lights\[0\]\.intensity.*allowed"):
         r.update(lights=[{"type": "point", "position": [0, 0, 0], "intensity": -1.0}])
     with pytest.raises(wv.SettingsError, match=r"shadow_grid=1 .*allowed: 0 or 2\.\.512"):
@@ -147,7 +147,7 @@ def test_a_stage_declaring_unknown_inputs_is_an_error():
         Pipeline(t).run()
 
 
-def test_a_frame_says_what_its_technique_leaves_out():
+def test_a_frame_says_what_its_technique_leaves_out(device):
     """The sky (a non-black background) is a light: raymarch gathers it unless sky_samples = 0,
     light_shafts leaves it out and says so; single-scattering techniques name multiple
     scattering; the reference names the orders beyond max_bounces, and nothing at -1."""
@@ -156,11 +156,11 @@ def test_a_frame_says_what_its_technique_leaves_out():
              "lights": [{"type": "directional", "direction": [0, -1, 0], "irradiance": 1.0}],
              "media": [{"type": "homogeneous", "shape": "sphere", "radius": 1.0, "sigma_t": 0.5, "albedo": 0.9}]}
     sky = "the sky's light (the background) scattered in the media or reflected by surfaces"
-    assert wv.render(scene, "raymarch", device="cpu").leaves_out == ["multiple scattering"]
-    assert sky in wv.render(scene, "raymarch", device="cpu", sky_samples=0).leaves_out
-    assert sky in wv.render(scene, "light_shafts", device="cpu").leaves_out
-    assert wv.render(scene, "reference", device="cpu", spp=1).leaves_out == []
-    assert wv.render(scene, "reference", device="cpu", spp=1, max_bounces=1).leaves_out == [
+    assert wv.render(scene, "raymarch", device=device).leaves_out == ["multiple scattering"]
+    assert sky in wv.render(scene, "raymarch", device=device, sky_samples=0).leaves_out
+    assert sky in wv.render(scene, "light_shafts", device=device).leaves_out
+    assert wv.render(scene, "reference", device=device, spp=1).leaves_out == []
+    assert wv.render(scene, "reference", device=device, spp=1, max_bounces=1).leaves_out == [
         "light scattered more than 1 time (max_bounces = 1)"]
     scene["background"] = [0.0, 0.0, 0.0]
-    assert wv.render(scene, "light_shafts", device="cpu").leaves_out == ["multiple scattering"]
+    assert wv.render(scene, "light_shafts", device=device).leaves_out == ["multiple scattering"]

@@ -25,7 +25,7 @@ def rbf(centers, radius=0.2, peak=3.0, static=True):
 POINT = {"type": "point", "position": [0.1, 0.6, 0.2], "intensity": 3.0}
 
 
-def renderer(scene, device="cpu", **kw):
+def renderer(scene, device, **kw):
     r = wv.Renderer(scene, technique="rbf_propagation", device=device, **kw)
     r.render()
     return r
@@ -56,19 +56,19 @@ def test_injection_is_the_rbf_sum_at_cell_centres(device, centers, radius):
     np.testing.assert_allclose(a["extinction"][..., 0].ravel(), expected, rtol=1e-5, atol=1e-6)
 
 
-def test_zero_rbfs_is_refused():
+def test_zero_rbfs_is_refused(device):
     """Empty media are an error, named before any kernel runs."""
     with pytest.raises(SceneError, match=r"media\[0\]\.centers: has no centres"):
-        renderer(box_scene([rbf(np.zeros((0, 3)))], [POINT]))
+        renderer(box_scene([rbf(np.zeros((0, 3)))], [POINT]), device)
 
 
-def test_corrected_rule_is_exact_along_an_axis():
+def test_corrected_rule_is_exact_along_an_axis(device):
     """A directional light straight down through a homogeneous box filling the grid: the
     corrected rule gives sigma_t times the depth below the top face, at every cell centre."""
     sigma = 0.7
     scene = box_scene([{"type": "homogeneous", "shape": "box", "size": [2, 2, 2], "sigma_t": sigma, "albedo": 0.9}],
                       [{"type": "directional", "direction": [0, -1, 0], "irradiance": 1.0}], surfaces=False)
-    r = renderer(scene, grid=8)
+    r = renderer(scene, device, grid=8)
     a = r.arrays()
     lo, hi = (np.asarray(b) for b in a["bounds"])
     h = (hi - lo)[1] / 8
@@ -82,12 +82,12 @@ def test_corrected_rule_is_exact_along_an_axis():
     np.testing.assert_allclose(paper[0, :, 0], sigma * (8 - np.arange(8)), rtol=1e-5)
 
 
-def test_corrected_rule_converges_to_the_marched_optical_depth():
+def test_corrected_rule_converges_to_the_marched_optical_depth(device):
     """Point lights, RBF medium: the upwind scheme is first order, so doubling the grid
     roughly halves the mean error against optical depth marched from each centre to the light."""
     errs = []
     for n in (10, 20):
-        a = renderer(rbf_cornell(), grid=n).arrays(for_view=True)
+        a = renderer(rbf_cornell(), device, grid=n).arrays(for_view=True)
         exact = a["optical_depth_exact"]
         errs.append(np.abs(a["optical_depth"] - exact).mean() / exact.mean())
     assert errs[1] < 0.75 * errs[0], errs
@@ -103,12 +103,12 @@ def test_wavefront_equals_whole_grid_sweeps_for_a_light_at_a_cell_centre(device)
     np.testing.assert_allclose(wave, sweep, rtol=2e-3, atol=1e-4)
 
 
-def test_image_against_the_reference():
+def test_image_against_the_reference(device):
     """Same RBF medium, single scattering, pixel centres. The mean agrees within 3% at grid 20
     (reference noise on the mean about 0.3% at 256 spp); the remaining error is the grids'."""
     scene = wv.load_scene("rbf-cornell", ["camera.width=48", "camera.height=36"])
-    ref = wv.render(scene, technique="reference", spp=256, max_bounces=1, pixel_area=0).image
-    img = wv.render(scene, technique="rbf_propagation", grid=20).image
+    ref = wv.render(scene, technique="reference", device=device, spp=256, max_bounces=1, pixel_area=0).image
+    img = wv.render(scene, technique="rbf_propagation", device=device, grid=20).image
     assert abs(img.mean() - ref.mean()) / ref.mean() < 0.03
 
 
@@ -125,11 +125,11 @@ def test_table1(device, static_medium, static_lights, expected):
         assert (frame.stages["inject"].status, frame.stages["propagate"].status) == expected
 
 
-def test_light_inside_a_dense_rbf_and_a_single_cell_grid():
+def test_light_inside_a_dense_rbf_and_a_single_cell_grid(device):
     scene = box_scene([rbf([[0.1, 0.6, 0.2]], 0.2, peak=200.0)], [POINT])  # the light at the RBF's centre
-    img = renderer(scene, grid=16).render().image
+    img = renderer(scene, device, grid=16).render().image
     assert np.isfinite(img).all() and (img >= 0).all()
-    one = renderer(box_scene([rbf([[0.0, 0.0, 0.0]], 0.5)], [POINT]), grid=1)
+    one = renderer(box_scene([rbf([[0.0, 0.0, 0.0]], 0.5)], [POINT]), device, grid=1)
     assert np.isfinite(one.render().image).all() and one.arrays()["optical_depth"].shape == (1, 1, 1, 1, 3)
 
 
@@ -137,16 +137,16 @@ def test_light_inside_a_dense_rbf_and_a_single_cell_grid():
 # far light planned millions of wavefront launches
 
 @pytest.mark.parametrize("name", ["scenes/sunlit-haze.toml", "smoke-grid"])
-def test_a_medium_over_a_plane_agrees_with_raymarch(name):
+def test_a_medium_over_a_plane_agrees_with_raymarch(device, name):
     """A medium over a floor plane under the sun: the volume spans the medium (it used to span
     the plane alone: zero thickness, 1408 of 3072 pixels NaN at 64x48, the haze missing).
     Against raymarch (256 steps, 128 shadow steps) the relative RMSE (over the mean) is the
     grid's error: measured at 32x24, 0.100 / 0.061 / 0.038 (sunlit-haze) and 0.124 / 0.077 /
     0.045 (smoke-grid) at grid 10 / 20 / 40, first order. 0.19 is 1.5x the larger at grid 10."""
     scene = wv.load_scene(name, ["camera.width=32", "camera.height=24"])
-    img = wv.render(scene, technique="rbf_propagation", grid=10).image
+    img = wv.render(scene, technique="rbf_propagation", device=device, grid=10).image
     assert np.isfinite(img).all()
-    ref = wv.render(scene, technique="raymarch", steps=256, shadow_steps=128, sky_samples=0).image  # both without the sky
+    ref = wv.render(scene, technique="raymarch", device=device, steps=256, shadow_steps=128, sky_samples=0).image  # both without the sky
     err = relative_rmse(img, ref)
     assert err < 0.19, err
     assert abs(img.mean() / ref.mean() - 1) < 0.05, img.mean() / ref.mean()
@@ -161,12 +161,12 @@ FLAT = [
 
 @pytest.mark.parametrize("medium", FLAT, ids=["box-1e-6", "grid-flat"])
 @pytest.mark.parametrize("surfaces", [False, True])
-def test_a_flat_medium_is_padded_and_its_launches_bounded(medium, surfaces):
+def test_a_flat_medium_is_padded_and_its_launches_bounded(device, medium, surfaces):
     """A medium 1e-6 thick (or 0) used to give cells 5e-8 thick, so the point light sat 1e7
     cells away: 10-38 million wavefront launches. The volume is padded to 1% of its widest
     axis and only the shells holding a grid cell are launched: at most 3(n - 1) + 1."""
     n = 12
-    r = renderer(box_scene([medium], [POINT], surfaces=surfaces), grid=n)
+    r = renderer(box_scene([medium], [POINT], surfaces=surfaces), device, grid=n)
     assert r.technique.launches <= 3 * (n - 1) + 1
     lo, hi = (np.asarray(b) for b in r.arrays()["bounds"])
     assert ((hi - lo) >= 0.01 * (hi - lo).max() * (1 - 1e-6)).all() and (hi - lo).max() >= 1.0
@@ -175,29 +175,29 @@ def test_a_flat_medium_is_padded_and_its_launches_bounded(medium, surfaces):
     assert np.isfinite(r.arrays()["optical_depth"]).all()
 
 
-def test_a_light_far_away_acts_as_a_directional_light():
+def test_a_light_far_away_acts_as_a_directional_light(device):
     """A point light at 1e20 (the cell index used to overflow) gives, with its cell clamped next
     to the grid, the OPV of a directional light along the same direction, in at most 3(n - 1) + 1
     launches."""
     n = 10
     media = [rbf([[0.0, 0.0, 0.0], [0.4, -0.3, 0.2]], 0.3)]
-    far = renderer(box_scene(media, [{"type": "point", "position": [1e20, 1e20, 0.0], "intensity": 1.0}]), grid=n)
+    far = renderer(box_scene(media, [{"type": "point", "position": [1e20, 1e20, 0.0], "intensity": 1.0}]), device, grid=n)
     assert far.technique.launches <= 3 * (n - 1) + 1
-    sun = renderer(box_scene(media, [{"type": "directional", "direction": [-1, -1, 0], "irradiance": 1.0}]), grid=n)
+    sun = renderer(box_scene(media, [{"type": "directional", "direction": [-1, -1, 0], "irradiance": 1.0}]), device, grid=n)
     assert np.isfinite(far.render().image).all()
     tau_far, tau_sun = far.arrays()["optical_depth"], sun.arrays()["optical_depth"]
     assert tau_sun.max() > 1.0
     np.testing.assert_allclose(tau_far, tau_sun, rtol=1e-4, atol=1e-5)
 
 
-def test_a_surface_outside_the_volume_reads_the_opv_where_its_light_path_enters():
+def test_a_surface_outside_the_volume_reads_the_opv_where_its_light_path_enters(device):
     """sunlit-haze's floor reaches 5 units from the haze sphere: a floor point outside the
     volume is shadowed only if its path to the sun crosses the volume (it used to read the
     nearest face's value, stretching the sphere's shadow over the whole floor)."""
     scene = wv.load_scene("scenes/sunlit-haze.toml", ["camera.width=32", "camera.height=24",
                                                       "camera.origin=[0.0, 6.0, 6.0]", "camera.fov_y=60.0"])
-    img = wv.render(scene, technique="rbf_propagation", grid=10).image
-    ref = wv.render(scene, technique="raymarch", steps=256, shadow_steps=128, sky_samples=0).image  # both without the sky
+    img = wv.render(scene, technique="rbf_propagation", device=device, grid=10).image
+    ref = wv.render(scene, technique="raymarch", device=device, steps=256, shadow_steps=128, sky_samples=0).image  # both without the sky
     assert np.isfinite(img).all()
     err = relative_rmse(img, ref)
     assert err < 0.12, err

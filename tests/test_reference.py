@@ -158,6 +158,7 @@ def test_raymarch_converges_to_airlight(device):
     assert errs[-1] < 0.01
 
 
+@pytest.mark.cpu_only
 def test_split_cpu_launch_is_deterministic(monkeypatch):
     """The CPU launch split over threads gives the same pixels as one thread (each pixel's
     random stream depends on its index only)."""
@@ -229,6 +230,7 @@ def test_light_at_particle_centre_and_grazing_rays(device):
         assert np.all(np.isfinite(img)) and np.all(img >= 0)
 
 
+@pytest.mark.cpu_only
 def test_sample_slots_share_a_pixel_without_bias(monkeypatch):
     """A launch of pixels x slots threads (as on a GPU, where a small image must still fill the
     device) estimates the same image as one thread per pixel: the two image means agree within

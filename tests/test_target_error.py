@@ -83,7 +83,7 @@ def test_measured_error_takes_the_fine_levels_noise_out():
     assert measured_error(*noisy, order=1.0, coarse_spread=s, fine_spread=s) == pytest.approx(expected, rel=0.03)
 
 
-def test_raymarch_meets_its_target_on_random_scenes():
+def test_raymarch_meets_its_target_on_random_scenes(device):
     """12 seeded scenes, target 0.01: the true error (against every setting near its limit: 512
     steps, 256 shadow steps, 256 sky directions; the sky's quadrature converges as 1/n, so the
     truth keeps an eighth of the bias of the default 32 directions, and the shadow march, order
@@ -94,8 +94,8 @@ def test_raymarch_meets_its_target_on_random_scenes():
         scene = random_scene(seed)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
-            frame = wv.render(scene, "raymarch", device="cpu", target_error=target)
-        fine = wv.render(scene, "raymarch", device="cpu", steps=512, shadow_steps=256, sky_samples=256).image
+            frame = wv.render(scene, "raymarch", device=device, target_error=target)
+        fine = wv.render(scene, "raymarch", device=device, steps=512, shadow_steps=256, sky_samples=256).image
         truth = wv.relative_rmse(frame.image, fine)
         assert frame.error_estimate is not None and frame.error_estimate <= target and frame.settings["steps"] <= 512
         met += truth <= target
@@ -104,7 +104,7 @@ def test_raymarch_meets_its_target_on_random_scenes():
     assert met >= 0.9 * 12 and within >= 0.9 * 12, (met, within, np.round(ratios, 2))
 
 
-def test_light_shafts_meets_its_target_on_random_scenes():
+def test_light_shafts_meets_its_target_on_random_scenes(device):
     """The same scenes, light_shafts at target 0.02 against its converged answer, every setting
     near its limit (4096 steps and 512 shadow steps: order 1, a thirtieth of the error at the
     128 steps target_error takes; block 1 and 2048-texel shadow maps: the block's and the map's
@@ -117,8 +117,8 @@ def test_light_shafts_meets_its_target_on_random_scenes():
         scene = random_scene(seed)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
-            frame = wv.render(scene, "light_shafts", device="cpu", target_error=0.02)
-        fine = wv.render(scene, "light_shafts", device="cpu", steps=4096, block=1, shadow_steps=512,
+            frame = wv.render(scene, "light_shafts", device=device, target_error=0.02)
+        fine = wv.render(scene, "light_shafts", device=device, steps=4096, block=1, shadow_steps=512,
                          shadow_map_res=2048).image
         truth = wv.relative_rmse(frame.image, fine)
         met += truth <= 0.02
@@ -127,7 +127,7 @@ def test_light_shafts_meets_its_target_on_random_scenes():
     assert met >= 9 and within >= 9, (met, within, np.round(ratios, 2))
 
 
-def test_illumination_network_meets_its_target_on_random_clouds():
+def test_illumination_network_meets_its_target_on_random_clouds(device):
     """Its converged answer: directions D -> infinity (each level averages two randomly turned
     Fibonacci sets, direction_seed 1 and 2: their spread is the random part, successive levels
     the systematic part, order 1 in D), the light pass exact and its light samples many. The
@@ -141,9 +141,9 @@ def test_illumination_network_meets_its_target_on_random_clouds():
         scene = random_cloud(seed)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
-            frame = wv.render(scene, "illumination_network", device="cpu", target_error=0.03)
+            frame = wv.render(scene, "illumination_network", device=device, target_error=0.03)
         assert frame.settings["direction_seed"] == "1 and 2, averaged" and frame.settings["window_at"] == 128
-        fine = [wv.render(scene, "illumination_network", device="cpu", directions=4096, direction_seed=k, window_at=128,
+        fine = [wv.render(scene, "illumination_network", device=device, directions=4096, direction_seed=k, window_at=128,
                           light_pass=0, light_samples=1024).image.astype(np.float64) for k in (3, 4)]
         mean = 0.5 * (fine[0] + fine[1])
         noise = wv.relative_rmse(mean + 0.5 * np.abs(fine[0] - fine[1]), mean)
@@ -153,43 +153,43 @@ def test_illumination_network_meets_its_target_on_random_clouds():
     assert met >= 0.9 * 4 and within >= 0.9 * 4, (met, within)
 
 
-def test_the_reference_stops_at_its_noise():
+def test_the_reference_stops_at_its_noise(device):
     """The reference's estimate is the relative standard error of two independent halves; a
     tighter target takes more samples and reports a smaller estimate."""
     scene = random_scene(3)
-    loose = wv.render(scene, "reference", device="cpu", target_error=0.02)
-    tight = wv.render(scene, "reference", device="cpu", target_error=0.004)
+    loose = wv.render(scene, "reference", device=device, target_error=0.02)
+    tight = wv.render(scene, "reference", device=device, target_error=0.004)
     assert loose.error_estimate <= 0.02 and tight.error_estimate <= 0.004
     assert tight.settings["spp"] > loose.settings["spp"]
 
 
-def test_target_error_errors_name_the_key():
+def test_target_error_errors_name_the_key(device):
     with pytest.raises(SettingsError, match="target_error=2"):
-        wv.render("fog-box", "raymarch", device="cpu", target_error=2)
+        wv.render("fog-box", "raymarch", device=device, target_error=2)
     with pytest.raises(SettingsError, match="not both"):
-        wv.render("fog-box", "raymarch", device="cpu", target_error=0.1, steps=16)
+        wv.render("fog-box", "raymarch", device=device, target_error=0.1, steps=16)
     with pytest.raises(SettingsError, match="not both"):
-        wv.render("particle-cloud", "illumination_network", device="cpu", target_error=0.1, direction_seed=3)
+        wv.render("particle-cloud", "illumination_network", device=device, target_error=0.1, direction_seed=3)
 
 
-def test_auto_picks_the_fastest_technique_that_meets_the_target():
+def test_auto_picks_the_fastest_technique_that_meets_the_target(device):
     """technique="auto" against the physical answer: with a loose target a real-time technique
     whose measured error on the family meets it (not the reference); with a target none of
     them meets, the reference to that target by its noise; without a target, an error."""
     scene = wv.load_scene("fog-box", ["camera.width=16", "camera.height=12"])
-    loose = wv.render(scene, "auto", device="cpu", target_error=0.95)
+    loose = wv.render(scene, "auto", device=device, target_error=0.95)
     assert loose.technique != "reference" and loose.choice.startswith(loose.technique)
-    strict = wv.render(scene, "auto", device="cpu", target_error=0.1)
+    strict = wv.render(scene, "auto", device=device, target_error=0.1)
     assert strict.technique == "reference" and strict.choice.startswith("reference: no technique")
     assert strict.error_estimate <= 0.1
     with pytest.raises(SettingsError, match="auto: give target_error"):
-        wv.render(scene, "auto", device="cpu")
+        wv.render(scene, "auto", device=device)
 
 
 @pytest.mark.parametrize("technique, scene", [("raymarch", random_scene(2)), ("light_shafts", random_scene(4)),
                                               ("depth_impostors", random_cloud(1)),
                                               ("illumination_network", random_cloud(0)), ("reference", random_scene(3))])
-def test_target_error_does_not_depend_on_brightness(technique, scene):
+def test_target_error_does_not_depend_on_brightness(device, technique, scene):
     """Every light and the sky times k = 1e-4, 1, 1e4: the image is k times as bright, and
     target_error picks the same settings and reports the same estimate, as the error measure
     is scale-free. What is left is float32 rounding: the image's relative 1e-7, the estimate's
@@ -198,7 +198,7 @@ def test_target_error_does_not_depend_on_brightness(technique, scene):
     for k in (1e-4, 1.0, 1e4):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
-            frames.append(wv.render(brightened(scene, k), technique, device="cpu", target_error=0.03))
+            frames.append(wv.render(brightened(scene, k), technique, device=device, target_error=0.03))
     one = frames[1]
     assert 0.0 < one.error_estimate <= 0.03
     for k, frame in zip((1e-4, 1e4), (frames[0], frames[2])):

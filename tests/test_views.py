@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import pyvista as pv
+pv = pytest.importorskip("pyvista", reason="pyvista is the [viz] extra")
 
 from warpvol import viz
 import warpvol as wv
@@ -21,7 +21,7 @@ def not_blank(img: np.ndarray) -> float:
 
 
 @pytest.mark.parametrize("name", list(BUILTIN))
-def test_view_screenshot_of_each_builtin_scene(name, tmp_path):
+def test_view_screenshot_of_each_builtin_scene(device, name, tmp_path):
     out = tmp_path / f"{name}.png"
     from warpvol.cli import main
 
@@ -34,12 +34,12 @@ def test_view_screenshot_of_each_builtin_scene(name, tmp_path):
     assert not_blank(img) > 0.02
 
 
-def test_volume_grid_keeps_the_extinction_layout():
+def test_volume_grid_keeps_the_extinction_layout(device):
     scene = wv.load_scene("smoke-grid")
     grid_medium = scene.media[0]
     d, h, w = grid_medium.density.shape
     # sampled at the grid's own cell centres, the extinction volume is the density times the scale
-    sigma, lo, hi = wv.extinction_volume(scene, resolution=w, device="cpu")
+    sigma, lo, hi = wv.extinction_volume(scene, resolution=w, device=device)
     assert sigma.shape == (d, h, w, 3)
     np.testing.assert_allclose(sigma[..., 0], grid_medium.density * grid_medium.sigma_t_scale[0], rtol=1e-5, atol=1e-6)
     mesh = viz.volume_grid(sigma, lo, hi)
@@ -72,8 +72,8 @@ def test_network_and_particles_and_slices():
     assert spheres.n_points > 10 * 20
 
 
-def test_a_volume_plot_is_not_blank():
-    sigma, lo, hi = wv.extinction_volume("rbf-cornell", resolution=24, device="cpu")
+def test_a_volume_plot_is_not_blank(device):
+    sigma, lo, hi = wv.extinction_volume("rbf-cornell", resolution=24, device=device)
     p = pv.Plotter(off_screen=True, window_size=(200, 150))
     p.add_volume(viz.volume_grid(sigma, lo, hi), cmap="bone")
     img = p.screenshot(return_img=True)
@@ -81,10 +81,10 @@ def test_a_volume_plot_is_not_blank():
     assert not_blank(img) > 0.02
 
 
-def test_light_shafts_arrays_and_their_view():
+def test_light_shafts_arrays_and_their_view(device):
     from .test_light_shafts import pillar_scene
 
-    r = wv.Renderer(pillar_scene(width=32, height=24), technique="light_shafts", device="cpu", shadow_map_res=32)
+    r = wv.Renderer(pillar_scene(width=32, height=24), technique="light_shafts", device=device, shadow_map_res=32)
     r.render()
     arrays = r.arrays(resolution=24)
     (pts,) = arrays["shadow_points"]  # one point light: a cube map
@@ -103,10 +103,10 @@ def test_light_shafts_arrays_and_their_view():
     assert not_blank(img) > 0.02
 
 
-def test_illumination_network_view():
+def test_illumination_network_view(device):
     """Particles coloured by radiance and the edges of the direction nearest the sun: one
     edge per particle that sees another upstream, drawn from its own arrays."""
-    r = wv.Renderer("particle-cloud", technique="illumination_network", device="cpu", directions=32,
+    r = wv.Renderer("particle-cloud", technique="illumination_network", device=device, directions=32,
                     iterations=20)
     r.render()
     arrays = r.arrays(for_view=True)
@@ -122,12 +122,12 @@ def test_illumination_network_view():
     assert not_blank(img) > 0.02
 
 
-def test_depth_impostors_view(tmp_path):
+def test_depth_impostors_view(device, tmp_path):
     """Instances, one block's impostor layers (its opacity plane holds the impostor's opacity)
     and the light slices (one plane per slice, the last the most opaque), drawn from the
     technique's own arrays."""
     scene = Path(__file__).resolve().parent.parent / "scenes" / "impostor-cloud.toml"
-    r = wv.Renderer(str(scene), technique="depth_impostors", device="cpu", impostor_res=8,
+    r = wv.Renderer(str(scene), technique="depth_impostors", device=device, impostor_res=8,
                     slices=3)
     r.render()
     arrays = r.arrays(for_view=True)
@@ -146,14 +146,14 @@ def test_depth_impostors_view(tmp_path):
     assert not_blank(img) > 0.02
 
 
-def test_view_with_a_technique_from_outside_the_checkout(tmp_path):
+def test_view_with_a_technique_from_outside_the_checkout(device, tmp_path):
     """``view --technique`` as an installed package runs it: from a folder that is not the
     repo, so no top-level ``viz`` or ``warpvol`` folder is on the path but the installed ones."""
     import subprocess
     import sys
 
     out = tmp_path / "view.png"
-    run = subprocess.run([sys.executable, "-m", "warpvol", "view", "fog-box", "--technique", "raymarch", "--device", "cpu",
+    run = subprocess.run([sys.executable, "-m", "warpvol", "view", "fog-box", "--technique", "raymarch", "--device", device,
                           "--set", "shadow_grid=8", "--screenshot", str(out)], cwd=tmp_path, capture_output=True,
                          text=True, timeout=600)
     assert run.returncode == 0, run.stderr
