@@ -15,8 +15,9 @@ stopped and marked "did not fit"; the rows a sweep measured before that are kept
 4. ``quick``: every other sweep's quick rows;
 5. ``reference``: the reference path tracer's speed rows.
 
-The budget is shared out by phase (``PHASES``: the weights of what is left), and within a phase
-evenly over the steps still to run, so time a step leaves unused passes to the ones after it.
+The budget is shared out by phase (``PHASES``: the weights of what is left); within a phase a
+step may take up to twice an even share of what the phase has left, so time a step leaves unused
+passes to the ones after it and a slow one is stopped before it takes the rest.
 Writes, under ``--out``: ``campaign.log`` (every line of every step, flushed as it comes),
 ``summary.json`` and ``summary.md`` (what ran, passed, failed and did not fit), ``suite.xml``,
 ``census.json`` and ``results/<sweep>/<device>[-quick].json`` (``python -m warpvol bench report``
@@ -161,11 +162,13 @@ def campaign(device: str, budget_s: float, out: Path, tiny: bool = False, tests:
         left = budget_s - (time.perf_counter() - start)
         phase_end = time.perf_counter() + left * PHASES[phase] / sum(PHASES[p] for p in phases[i:])
         for k, step in enumerate(todo):
-            step.limit_s = round(min((phase_end - time.perf_counter()) / (len(todo) - k),
+            phase_left = phase_end - time.perf_counter()
+            # at most twice an even share of what the phase has left: a slow step cannot take the rest
+            step.limit_s = round(min(phase_left, max(MIN_STEP_S, 2.0 * phase_left / (len(todo) - k)),
                                      budget_s - (time.perf_counter() - start)), 1)
             if step.limit_s < MIN_STEP_S:
                 step.status = "did not fit"
-                log(step.name, f"not started: {step.limit_s:.0f} s left for it")
+                log(step.name, f"not started: {max(step.limit_s, 0):.0f} s left for it")
                 continue
             log(step.name, f"start (limit {step.limit_s:.0f} s): {' '.join(step.argv[1:])}")
             run_step(step, log)
@@ -239,6 +242,11 @@ def census(device: str, out: Path, tiny: bool) -> dict:
             return int(x.capacity)
         if isinstance(x, (list, tuple)):
             return sum(nbytes(y) for y in x)
+        if isinstance(x, wp.Volume):
+            return int(x.array().capacity)
+        fields = getattr(getattr(x, "_cls", None), "vars", None)  # a wp.struct: the arrays it holds
+        if fields:
+            return sum(nbytes(getattr(x, name)) for name in fields)
         return 0
 
     def recorded(kernel, dim=0, inputs=(), outputs=(), *args, **kw):
@@ -281,7 +289,8 @@ def census(device: str, out: Path, tiny: bool) -> dict:
         r["ms"] = round(r["ms"], 3)
         r["gb_per_s"] = round(r["bytes"] / max(r["ms"], 1e-6) / 1e6, 2)
     result = {"device": device_name(device), "frames": frames, "kernels": kernels,
-              "bytes_is": "the arrays handed to a launch, each counted once per launch (a lower bound on its traffic)"}
+              "bytes_is": "the arrays, volumes and structs' arrays handed to a launch, each counted once per launch "
+                          "(a lower bound on its traffic where it reads them whole)"}
     (out / "census.json").write_text(json.dumps(result, indent=1) + "\n")
     return result
 
