@@ -72,7 +72,11 @@ campaign)
 dry-run)
     budget=${2:-900}
     for d in .wp1 .wp2 .whl; do [ -d $d ] || { echo "no $d: run 'bash bench/gpu-run.sh pack' first" >&2; exit 2; }; done
-    py312=$(command -v python3.12) || { echo "the dry run needs python3.12 (the device's Python)" >&2; exit 2; }
+    py312=
+    for py in python3.12 "$HOME"/.pyenv/versions/3.12*/bin/python3.12; do  # on PATH or under pyenv
+        if "$py" -c 'import sys; assert sys.version_info[:2] == (3, 12)' 2>/dev/null; then py312=$py; break; fi
+    done
+    [ -n "$py312" ] || { echo "the dry run needs Python 3.12 (the device's), on PATH or under pyenv" >&2; exit 2; }
     here=$PWD
     tmp=$(mktemp -d)
     git clone -q "$here" "$tmp/repo"
