@@ -21,8 +21,8 @@ passes to the ones after it and a slow one is stopped before it takes the rest.
 Writes, under ``--out``: ``campaign.log`` (every line of every step, flushed as it comes),
 ``summary.json`` and ``summary.md`` (what ran, passed, failed and did not fit), ``suite.xml``,
 ``census.json`` and ``results/<sweep>/<device>[-quick].json`` (``python -m warpvol bench report``
-writes their pages). ``--tiny``: a few test files, quick rows everywhere and small frames, for a
-dry run of the whole campaign on the CPU.
+writes their pages). ``--tiny``: the whole suite collected (an import that fails is found) but a
+few test files run, quick rows everywhere and small frames, for a dry run on the CPU.
 """
 
 from __future__ import annotations
@@ -98,7 +98,9 @@ def plan(device: str, out: Path, tiny: bool, tests: list[str] | None) -> list[St
     tiny_flag = ["--tiny"] if tiny else []
     suite = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", f"--junitxml={out / 'suite.xml'}",
              *(tests or (TINY_TESTS if tiny else ["tests"]))]
-    steps = [Step("suite", "suite", suite, {"WARPVOL_TEST_DEVICES": device}),
+    steps = [Step("collect", "suite", [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--collect-only",
+                                       "tests"], {"WARPVOL_TEST_DEVICES": device})] if tiny else []
+    steps += [Step("suite", "suite", suite, {"WARPVOL_TEST_DEVICES": device}),
              Step("census", "census", py + ["--census"] + tiny_flag)]
     paper = [n for n, s in SWEEPS.items() if s.paper and s.available]
     others = [n for n, s in SWEEPS.items() if not s.paper and s.available and n != "reference-speed"]
