@@ -7,7 +7,7 @@ import pytest
 import warp as wp
 
 from warpvol.geometry.intersect import ray_box, ray_sphere, sphere_chord
-from warpvol.physics import airlight, phase, sphere, transmittance
+from warpvol.physics import airlight, phase, sampling, sphere, transmittance
 from warpvol.physics.lights import KINDS, Light, ball_mean_inverse_square, light_incident
 
 
@@ -27,7 +27,7 @@ def sample_phase(ph: phase.Phase, table: wp.array(dtype=float), seed: int,
     wi, w, pdf = phase.phase_sample(ph, table, d, wp.randf(rng), wp.randf(rng))
     c = wp.dot(d, wi)
     cos_out[i] = c
-    t, s = phase.orthonormal_basis(d)
+    t, s = sampling.orthonormal_basis(d)
     phi_out[i] = wp.atan2(wp.dot(wi, s), wp.dot(wi, t))
     weight[i] = w
     pdf_ratio[i] = pdf / phase.phase_eval(ph, table, c)
@@ -36,7 +36,7 @@ def sample_phase(ph: phase.Phase, table: wp.array(dtype=float), seed: int,
 @wp.kernel
 def eval_transmittance(tau: wp.array(dtype=float), out: wp.array(dtype=float)):
     i = wp.tid()
-    out[i] = transmittance.transmittance(transmittance.optical_depth(tau[i], 1.0))
+    out[i] = transmittance.transmittance(tau[i])
 
 
 @wp.kernel
@@ -53,12 +53,6 @@ def eval_light(light: Light, x: wp.array(dtype=wp.vec3), wi_out: wp.array(dtype=
     wi_out[i] = wi
     dist_out[i] = dist
     e_out[i] = e
-
-
-@wp.kernel
-def eval_nearest(dirs: wp.array(dtype=wp.vec3), w: wp.array(dtype=wp.vec3), out: wp.array(dtype=int)):
-    i = wp.tid()
-    out[i] = sphere.nearest_direction(dirs, w[i])
 
 
 @wp.kernel
@@ -355,19 +349,6 @@ def test_sphere_escape_matches_quadrature(device):
     np.testing.assert_allclose(out.numpy()[:-1], want, rtol=2e-4, atol=1e-6)
     # at tau = 100 the integrand lives in a skin the grid cannot resolve: 3/(4 tau) - 3/(8 tau^3)
     assert out.numpy()[-1] == pytest.approx(0.75 / 100.0 - 0.375 / 100.0**3, rel=1e-5)
-
-
-@pytest.mark.parametrize("count", [1, 32, 128, 500])
-def test_nearest_direction(device, count):
-    dirs = sphere.fibonacci_directions(count)
-    np.testing.assert_allclose(np.linalg.norm(dirs, axis=1), 1.0, rtol=1e-6)
-    w = np.random.default_rng(count).normal(size=(2000, 3))
-    w /= np.linalg.norm(w, axis=1, keepdims=True)
-    out = wp.zeros(len(w), dtype=int, device=device)
-    wp.launch(eval_nearest, dim=len(w), inputs=[wp.array(dirs, dtype=wp.vec3, device=device),
-                                                 wp.array(w.astype(np.float32), dtype=wp.vec3, device=device), out], device=device)
-    best = np.max(w @ dirs.T, axis=1)
-    np.testing.assert_allclose((w * dirs[out.numpy()]).sum(1), best, atol=1e-6)
 
 
 def test_fibonacci_directions_are_well_spread():

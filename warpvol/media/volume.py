@@ -25,6 +25,7 @@ import warp as wp
 from ..geometry.intersect import inside_box, ray_box, ray_sphere
 from ..physics.constants import INF, SQRT2, SQRT_HALF_PI, STREAM
 from ..physics.phase import Phase, phase_eval
+from ..physics.sampling import sample_exponential
 from ..physics.transmittance import transmittance_rgb
 from .grid import grid_trilinear, volume_trilinear, walk_axis, walk_start
 from .particles import Particles, particle_optical_depth, particle_sigma_t
@@ -225,7 +226,7 @@ def grid_tracking(m: Media, i: int, o: wp.vec3, d: wp.vec3, t0: float, t1: float
         seg_end = wp.min(wp.min(wp.min(t_next[0], t_next[1]), t_next[2]), t_end)
         mu = m.majorant_data[base + (cell[2] * n[1] + cell[1]) * n[0] + cell[0]] * sig
         while mu > 0.0:
-            t = t + (-wp.log(1.0 - wp.randf(rng))) / mu
+            t = t + sample_exponential(wp.randf(rng), mu)
             if t >= seg_end:
                 break
             real = medium_density(m, i, o + t * d) * sig / mu
@@ -388,7 +389,7 @@ def uniform_collision(a: float, b: float, sig: float, u: float) -> float:
     variate u: a + E / sig with E exponential, or INF when it falls past b (or a >= b)."""
     if a >= b:
         return INF
-    t = a - wp.log(1.0 - u) / sig
+    t = a + sample_exponential(u, sig)
     return wp.where(t < b, t, INF)
 
 
@@ -445,7 +446,7 @@ def free_flight(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: float, c: int, 
                         # optical depth from a to t: K (erf(z_t) - erf(z_a)), K = sig g r sqrt(pi / 2);
                         # at most 2K, so an exponential variate above that needs no erf at all
                         K = wp.float64(sig * g * r * SQRT_HALF_PI)
-                        e = wp.float64((-wp.log(1.0 - wp.randf(rng))))
+                        e = wp.float64(sample_exponential(wp.randf(rng), 1.0))
                         if e < wp.float64(2.0) * K:
                             ea = gaussian_erf(a, tc, r)
                             if e < K * (gaussian_erf(b, tc, r) - ea):

@@ -34,6 +34,7 @@ import numpy as np
 import warp as wp
 
 from .constants import INV_4PI, PI, TWO_PI
+from .sampling import orthonormal_basis
 
 ISOTROPIC = wp.constant(0)
 HG = wp.constant(1)
@@ -207,17 +208,6 @@ def sample_tabulated_cos(table: wp.array(dtype=float), offset: int, n: int, u: f
     else:
         s = 2.0 * r / (a + wp.sqrt(wp.max(a * a + 2.0 * (b - a) * r, 0.0)))  # the root without cancellation
     return wp.clamp(-1.0 + (float(lo) + wp.clamp(s, 0.0, 1.0)) * h, -1.0, 1.0)
-
-
-@wp.func
-def orthonormal_basis(n: wp.vec3):
-    """Two unit vectors completing n to a right-handed frame (Duff et al. 2017)."""
-    sign = wp.where(n[2] >= 0.0, 1.0, -1.0)
-    a = -1.0 / (sign + n[2])
-    b = n[0] * n[1] * a
-    t = wp.vec3(1.0 + sign * n[0] * n[0] * a, sign * b, -sign * n[0])
-    s = wp.vec3(b, sign + n[1] * n[1] * a, -n[1])
-    return t, s
 
 
 @wp.func

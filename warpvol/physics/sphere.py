@@ -1,11 +1,10 @@
-"""Direction sets on the unit sphere and nearest-direction lookup.
+"""Direction sets on the unit sphere.
 
 The Fibonacci (golden-spiral) set places D directions with equal area per direction
 (each owns 4 pi / D sr) and near-uniform spacing; González, Math. Geosci. 2010.
 """
 
 import numpy as np
-import warp as wp
 
 
 def fibonacci_directions(count: int, seed: int = 0) -> np.ndarray:
@@ -25,16 +24,3 @@ def fibonacci_directions(count: int, seed: int = 0) -> np.ndarray:
         q = q * np.sign(np.diag(t))  # Haar-distributed (Mezzadri 2007)
         dirs = dirs @ (q * np.sign(np.linalg.det(q))).T  # a rotation, not a reflection
     return dirs.astype(np.float32)
-
-
-@wp.func
-def nearest_direction(dirs: wp.array(dtype=wp.vec3), w: wp.vec3) -> int:
-    """Index of the direction in ``dirs`` closest to w (largest dot product)."""
-    best = int(0)
-    best_dot = float(-2.0)
-    for i in range(dirs.shape[0]):
-        c = wp.dot(dirs[i], w)
-        if c > best_dot:
-            best_dot = c
-            best = i
-    return best

@@ -7,16 +7,6 @@ comes out unless NaN goes in.
 
 import warp as wp
 
-from .constants import INF
-
-
-@wp.func
-def optical_depth(sigma_t: float, length: float) -> float:
-    """tau = sigma_t * length, with 0 for an empty segment or an empty medium (no 0*inf)."""
-    if length <= 0.0 or sigma_t <= 0.0:
-        return 0.0
-    return wp.min(sigma_t * length, INF)
-
 
 @wp.func
 def transmittance(tau: float) -> float:

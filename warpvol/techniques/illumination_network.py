@@ -92,7 +92,8 @@ from ..media.lightpass import REPRESENTATIONS, LightPass
 from ..media.particles import ParticleBuffers, Particles, particle_sigma_t
 from ..physics.constants import INV_4PI, PI
 from ..physics.lights import DIRECTIONAL, Light
-from ..physics.phase import Phase, orthonormal_basis, phase_eval, phase_struct, phase_toward
+from ..physics.phase import Phase, phase_eval, phase_struct, phase_toward
+from ..physics.sampling import orthonormal_basis
 from ..physics.sphere import fibonacci_directions
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Bias, Quality, Setting, SettingsError, Stage, Technique

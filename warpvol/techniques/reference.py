@@ -51,7 +51,9 @@ from ..media.volume import (Media, depths_and_extinction, exact_media, free_flig
 from ..physics.brdf import brdf_eval
 from ..physics.constants import INF, PI, RAY_EPS, STREAM, TWO_PI
 from ..physics.lights import DIRECTIONAL, Light, light_incident
-from ..physics.phase import orthonormal_basis, phase_eval, phase_sample
+from ..physics.phase import phase_eval, phase_sample
+from ..physics.sampling import (equiangular_pdf, equiangular_sample, exponential_pdf, orthonormal_basis,
+                                power_heuristic, sample_exponential)
 from ..physics.transmittance import transmittance_rgb
 from ..pipeline import Quality, Setting, Stage, Technique
 from ..shading import light_transmittance, surface_direct
@@ -117,13 +119,6 @@ def segment_irradiance(light: Light, o: wp.vec3, d: wp.vec3, ta: float, tb: floa
 
 
 @wp.func
-def equiangular_pdf(h: float, delta: float, th_a: float, th_b: float, t: float) -> float:
-    """The pdf of equiangular sampling (Kulla & Fajardo 2012) at t: the light lies h from the
-    ray, beside t = delta; the segment subtends the angles th_a .. th_b."""
-    return h / ((th_b - th_a) * (h * h + (t - delta) * (t - delta)))
-
-
-@wp.func
 def segment_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), o: wp.vec3, d: wp.vec3,
                    ta: float, tb: float, t_ff: float, i_ff: int, exact: bool, c: int, rng: wp.uint32) -> wp.vec3:
     """Direct light scattered toward -d from the media on [ta, tb] from one light, chosen in
@@ -172,7 +167,7 @@ def segment_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), o: wp.v
     tau_f = wp.vec3(0.0)
     sig_f = wp.vec3(0.0)
     if exact and equiangular:
-        t = wp.clamp(delta + h * wp.tan(th_a + (th_b - th_a) * wp.randf(rng)), ta, tb)
+        t = wp.clamp(equiangular_sample(h, delta, th_a, th_b, wp.randf(rng)), ta, tb)
         pdf_e = equiangular_pdf(h, delta, th_a, th_b, t)
         x = o + t * d
         wi, dist, e = light_incident(light, x)
@@ -184,13 +179,13 @@ def segment_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), o: wp.v
             tc = transmittance_rgb(tau_e)
             pdf_f = sig_e[c] * tc[c]
             tl = light_transmittance(m, s, x, wi, dist, c, wp.rand_init(wp.randi(rng), STREAM), 0)
-            w = pdf_e * pdf_e / (pdf_e * pdf_e + pdf_f * pdf_f)
+            w = power_heuristic(pdf_e, pdf_f)
             L += wp.cw_mul(wp.cw_mul(fs, e), wp.cw_mul(tl, tc)) * (w / pdf_e)
     elif equiangular:
-        t = wp.clamp(delta + h * wp.tan(th_a + (th_b - th_a) * wp.randf(rng)), ta, tb)
+        t = wp.clamp(equiangular_sample(h, delta, th_a, th_b, wp.randf(rng)), ta, tb)
         pdf_e = equiangular_pdf(h, delta, th_a, th_b, t)
-        pdf_m = mu * wp.exp(-mu * (t - ta))
-        w = pdf_e * pdf_e / (pdf_e * pdf_e + pdf_m * pdf_m)
+        pdf_m = exponential_pdf(mu, t - ta)
+        w = power_heuristic(pdf_e, pdf_m)
         L += scatter_sample(m, s, light, o, d, ta, t, c, wp.rand_init(wp.randi(rng), STREAM)) * (w / pdf_e)
     if exact or not point_like:
         # the free flight: weight 1 where there is no equiangular sample to share with (a
@@ -202,20 +197,20 @@ def segment_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), o: wp.v
             if equiangular:
                 pdf_e = equiangular_pdf(h, delta, th_a, th_b, t_ff)
                 pdf_f = sig_f[c] * wp.exp(-tau_f[c])
-                w = pdf_f * pdf_f / (pdf_e * pdf_e + pdf_f * pdf_f)
+                w = power_heuristic(pdf_f, pdf_e)
             fs = m.albedo[i_ff] * phase_eval(m.phase[i_ff], m.phase_table, wp.dot(d, wi))
             if dist > 0.0 and w > 0.0 and wp.max(fs) > 0.0:
                 tl = light_transmittance(m, s, x, wi, dist, c, wp.rand_init(wp.randi(rng), STREAM), 0)
                 L += wp.cw_mul(wp.cw_mul(fs, e), tl) * w
     elif mu > 0.0:
-        t = ta - wp.log(1.0 - wp.randf(rng)) / mu
+        t = ta + sample_exponential(wp.randf(rng), mu)
         if t < tb:
-            pdf_m = mu * wp.exp(-mu * (t - ta))
+            pdf_m = exponential_pdf(mu, t - ta)
             pdf_e = float(0.0)
             if equiangular:
                 pdf_e = equiangular_pdf(h, delta, th_a, th_b, t)
             if pdf_m > 0.0:
-                w = pdf_m * pdf_m / (pdf_e * pdf_e + pdf_m * pdf_m)
+                w = power_heuristic(pdf_m, pdf_e)
                 L += scatter_sample(m, s, light, o, d, ta, t, c, wp.rand_init(wp.randi(rng), STREAM)) * (w / pdf_m)
     return L * (total / w_chosen)
 
