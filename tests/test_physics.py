@@ -40,6 +40,12 @@ def eval_transmittance(tau: wp.array(dtype=float), out: wp.array(dtype=float)):
 
 
 @wp.kernel
+def eval_power_heuristic(a: wp.array(dtype=float), b: wp.array(dtype=float), out: wp.array(dtype=float)):
+    i = wp.tid()
+    out[i] = sampling.power_heuristic(a[i], b[i])
+
+
+@wp.kernel
 def eval_step_integral(sigma: wp.array(dtype=float), dt: float, out: wp.array(dtype=float)):
     i = wp.tid()
     out[i] = transmittance.step_integral(sigma[i], dt)
@@ -165,6 +171,26 @@ def test_hg_near_one_stays_finite_and_forward(device, g):
     cos_s, _, weight, _ = (o.numpy() for o in outs)
     assert np.all(np.isfinite(cos_s)) and np.all(np.isfinite(weight))
     assert abs(cos_s.astype(np.float64).mean() - g) < 5 * cos_s.std() / math.sqrt(n) + 1e-6
+
+
+def test_power_heuristic_is_finite_and_sums_to_one(device):
+    """pdf_a^2 / (pdf_a^2 + pdf_b^2) against float64, and the two strategies' weights sum to 1,
+    also where the squares leave float32's range (1e-30, 1e30) and where one pdf is 0; both 0
+    (a sample neither strategy could draw) weighs 0, not NaN."""
+    vals = np.array([0.0, 1e-30, 1e-3, 1.0, 2.0, 1e3, 1e25, 1e30, 3e38], np.float32)
+    a, b = (x.ravel() for x in np.meshgrid(vals, vals))
+    arrays = [wp.array(x, dtype=float, device=device) for x in (a, b, b, a)]
+    w_ab, w_ba = wp.zeros(len(a), dtype=float, device=device), wp.zeros(len(a), dtype=float, device=device)
+    wp.launch(eval_power_heuristic, dim=len(a), inputs=[arrays[0], arrays[1], w_ab], device=device)
+    wp.launch(eval_power_heuristic, dim=len(a), inputs=[arrays[2], arrays[3], w_ba], device=device)
+    w_ab, w_ba = w_ab.numpy(), w_ba.numpy()
+    assert np.isfinite(w_ab).all() and ((w_ab >= 0) & (w_ab <= 1)).all()
+    both_zero = (a == 0) & (b == 0)
+    assert (w_ab[both_zero] == 0).all()
+    a64, b64 = a.astype(np.float64), b.astype(np.float64)
+    want = 1.0 / (1.0 + (b64[~both_zero & (a > 0)] / a64[~both_zero & (a > 0)]) ** 2)
+    np.testing.assert_allclose(w_ab[~both_zero & (a > 0)], want, rtol=2e-6, atol=1e-30)  # float32 rounding
+    np.testing.assert_allclose((w_ab + w_ba)[~both_zero], 1.0, rtol=2e-6)
 
 
 def test_transmittance_is_finite_for_any_optical_depth(device):
