@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import warpvol as wv
-from warpvol.api import measured_error, remaining_error
+from warpvol.adaptive import measured_error, remaining_error
 from warpvol.metrics import relative_rmse
 from warpvol.pipeline import SettingsError
 from warpvol.scene.procedural import brightened, random_cloud, random_scene

@@ -78,7 +78,7 @@ class Bias:
     when: str | None = None
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Quality:
     """What ``render(target_error=...)`` does with a technique's discretisation settings.
 

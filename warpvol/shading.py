@@ -9,11 +9,11 @@ with ``march_steps`` midpoint steps over the heterogeneous part (homogeneous med
 import warp as wp
 
 from .geometry.intersect import ray_box
-from .geometry.mesh import Surfaces, occluded
+from .geometry.mesh import Surfaces, occluded, surface_hit
 from .geometry.shadowmap import ShadowedLights, shadow_visibility, texel_world_size
 from .media.volume import Media, homogeneous_optical_depth, sigma_t_at, transmittance_estimate
 from .physics.brdf import Material, brdf_eval
-from .physics.constants import RAY_EPS, STREAM
+from .physics.constants import INF, RAY_EPS, STREAM
 from .physics.lights import Light, light_incident
 from .physics.transmittance import transmittance_rgb
 
@@ -43,6 +43,15 @@ def light_transmittance(m: Media, s: Surfaces, x: wp.vec3, wi: wp.vec3, dist: fl
     if march_steps > 0:
         return transmittance_rgb(marched_optical_depth(m, x, wi, 0.0, dist, march_steps))
     return transmittance_estimate(m, x, wi, 0.0, dist, c, rng)
+
+
+@wp.func
+def camera_segment(m: Media, s: Surfaces, o: wp.vec3, d: wp.vec3):
+    """What a camera ray o + t d meets: the first surface (hit, t_surf, its normal and face) and
+    the span [ta, tb) of the media's box in front of it (empty where ta >= tb)."""
+    hit, t_surf, n, face = surface_hit(s, o, d, INF)
+    a, b = ray_box(o, d, m.all_min, m.all_max)
+    return hit, t_surf, n, face, wp.max(a, 0.0), wp.min(b, t_surf)
 
 
 @wp.func

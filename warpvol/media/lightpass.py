@@ -162,16 +162,20 @@ def texel_area(f: LightFace, M: int, u: float, v: float, t: float) -> float:
     return side * side / wp.pow(1.0 + rho2, 1.5) * t * t
 
 
+@wp.func
+def item_and_face(m: LightMap, tid: int):
+    """Thread tid = i F + f of a launch over items and the map's F faces: (i, f, face f)."""
+    F = m.faces.shape[0]
+    return tid / F, tid % F, m.faces[tid % F]
+
+
 @wp.kernel
 def splat_spheres(offset: int, P: Particles, m: LightMap, blocked: int, out: wp.array(dtype=wp.vec3)):
     """Thread p F + f: sphere p into face f; every texel whose centre ray crosses it gets the
     chord (texels over the sphere's projected box), or, for a sphere under a texel, its
     optical volume over the four texels around its centre. ``blocked`` = 1: orthographic
     faces are left to ``splat_blocks``."""
-    tid = wp.tid() + offset
-    F = m.faces.shape[0]
-    p = tid / F
-    f = m.faces[tid % F]
+    p, fi, f = item_and_face(m, wp.tid() + offset)
     if blocked != 0 and f.ortho != 0:
         return
     c = P.centres[p]
@@ -252,11 +256,7 @@ def template_light(offset: int, B: Blocks, owner: wp.array(dtype=int), reach: wp
     L (z^2 + L^2 / 12) (z: the chord's mid-depth from the template's centre): the chords'
     total and the mean and second moment of their depth, all sums, so cores may add
     private copies. A sphere under a cell deposits its volume in the cell of its centre."""
-    tid = wp.tid() + offset
-    F = m.faces.shape[0]
-    j = tid / F
-    fi = tid % F
-    f = m.faces[fi]
+    j, fi, f = item_and_face(m, wp.tid() + offset)
     if f.ortho == 0:
         return
     t = owner[j]
@@ -267,7 +267,7 @@ def template_light(offset: int, B: Blocks, owner: wp.array(dtype=int), reach: wp
     cu = wp.dot(c, f.right)
     cv = wp.dot(c, f.up)
     z = wp.dot(c, f.forward)
-    base = (t * F + fi) * T * T
+    base = (t * m.faces.shape[0] + fi) * T * T
     if r < h:
         i = wp.clamp(int(wp.floor((cu + R) / h)), 0, T - 1)
         k = wp.clamp(int(wp.floor((cv + R) / h)), 0, T - 1)
@@ -296,11 +296,7 @@ def splat_blocks(offset: int, B: Blocks, m: LightMap, T: int, cells: wp.array(dt
     impostor cell under it, its optical depth spread evenly over the depth interval with the
     chords' mean and variance (mean +- sqrt(3) sd: the block's chords through that texel
     merged into one segment)."""
-    tid = wp.tid() + offset
-    F = m.faces.shape[0]
-    i = tid / F
-    fi = tid % F
-    f = m.faces[fi]
+    i, fi, f = item_and_face(m, wp.tid() + offset)
     if f.ortho == 0:
         return
     t = B.tpl[i]
@@ -316,7 +312,7 @@ def splat_blocks(offset: int, B: Blocks, m: LightMap, T: int, cells: wp.array(dt
     ib = wp.min(int(wp.floor((cu + ru + 1.0) / texel - 0.5)), M - 1)
     ja = wp.max(int(wp.ceil((cv - ru + 1.0) / texel - 0.5)), 0)
     jb = wp.min(int(wp.floor((cv + ru + 1.0) / texel - 0.5)), M - 1)
-    base = (t * F + fi) * T * T
+    base = (t * m.faces.shape[0] + fi) * T * T
     sig = B.sigma_t[t]
     for j in range(ja, jb + 1):
         tj = int(wp.floor((((float(j) + 0.5) * texel - 1.0 - cv) / ru + 1.0) * 0.5 * float(T)))

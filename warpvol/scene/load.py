@@ -15,18 +15,8 @@ from typing import Any
 import numpy as np
 
 from . import mie, nanovdb, shapes
-from .model import (
-    Camera,
-    GridMedium,
-    HomogeneousMedium,
-    Light,
-    Medium,
-    ParticleMedium,
-    Phase,
-    RBFMedium,
-    Scene,
-    Surface,
-)
+from .model import (Camera, GridMedium, HomogeneousMedium, Light, Medium, ParticleMedium, Phase, RBFMedium, Scene,
+                    Surface)
 
 if sys.version_info >= (3, 11):
     import tomllib

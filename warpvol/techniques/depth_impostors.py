@@ -399,7 +399,7 @@ class DepthImpostors(Technique):
 
     NAME = NAME
     SETTINGS = SETTINGS
-    QUALITY = Quality("slices", 2, 512, 1, biases=(
+    QUALITY = Quality(knob="slices", start=2, top=512, order=1, biases=(
         Bias("light_pass", exact=0), Bias("impostor_res", factor=4, order=1),
         Bias("light_samples", factor=4, order=1), Bias("sky_samples", factor=4, order=1, when="sky")))
     LEAVES_OUT = ("multiple scattering",)

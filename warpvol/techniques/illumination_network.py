@@ -476,7 +476,7 @@ class IlluminationNetwork(Technique):
     NAME = NAME
     SETTINGS = SETTINGS
     # directions: the converged answer's quadrature, order 1 (measured); each level averages two turned sets
-    QUALITY = Quality("directions", 32, 2048, 1, biases=(Bias("light_pass", exact=0),
+    QUALITY = Quality(knob="directions", start=32, top=2048, order=1, biases=(Bias("light_pass", exact=0),
                                                           Bias("light_samples", factor=4, order=1)))
     QUALITY_SEED = "direction_seed"
     # the window is the model's, not a discretisation with a limit: as M grows a window column

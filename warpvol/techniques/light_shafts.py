@@ -358,7 +358,7 @@ class LightShafts(Technique):
 
     NAME = NAME
     SETTINGS = SETTINGS
-    QUALITY = Quality("steps", 16, 4096, 1, tied={"shadow_steps": 0.5},
+    QUALITY = Quality(knob="steps", start=16, top=4096, order=1, tied={"shadow_steps": 0.5},
                       biases=(Bias("block", exact=1), Bias("shadow_map_res", factor=4, order=1)))
     LEAVES_OUT = ("multiple scattering",)
 

@@ -61,16 +61,16 @@ import warp as wp
 from .. import device as dev
 from ..geometry.camera import camera_view
 from ..geometry.intersect import ray_box
-from ..geometry.mesh import Surfaces, surface_hit
+from ..geometry.mesh import Surfaces
 from ..geometry.raster import RasterView, pixel_ray
 from ..geometry.shadowmap import ShadowedLights, shadow_visibility
 from ..media.volume import Media, in_scatter_at, scattering_at, sigma_t_at
 from ..physics.airlight import g_table, surface_radiance
-from ..physics.constants import INF, PI
+from ..physics.constants import PI
 from ..physics.lights import DIRECTIONAL, SPOT, ball_mean_inverse_square, spot_falloff
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Bias, Quality, Setting, Stage, Technique
-from ..shading import light_arriving, surface_through_maps
+from ..shading import camera_segment, light_arriving, surface_through_maps
 from ..upload import SceneUploads, pinhole, shadowed_lights
 
 NAME = "particle_glow"
@@ -191,10 +191,7 @@ def march_glow(offset: int, cam: RasterView, m: Media, s: Surfaces, sl: Shadowed
     background, attenuated."""
     tid = wp.tid() + offset
     o, d = pixel_ray(cam, tid)
-    hit, t_surf, n, face = surface_hit(s, o, d, INF)
-    a, b = ray_box(o, d, m.all_min, m.all_max)
-    ta = wp.max(a, 0.0)
-    tb = wp.min(b, t_surf)
+    hit, t_surf, n, face, ta, tb = camera_segment(m, s, o, d)
     tr = wp.vec3(1.0)
     L = wp.vec3(0.0)
     if ta < tb:
@@ -259,7 +256,7 @@ class ParticleGlow(Technique):
 
     NAME = NAME
     SETTINGS = SETTINGS
-    QUALITY = Quality("steps", 8, 8192, 2, tied={"shadow_steps": 0.25},
+    QUALITY = Quality(knob="steps", start=8, top=8192, order=2, tied={"shadow_steps": 0.25},
                       biases=(Bias("shadow_map_res", factor=4, order=1),))
     LEAVES_OUT = ("multiple scattering (the glow imitates some of it)",)
 

@@ -30,8 +30,8 @@ import warp as wp
 
 from .. import device as dev
 from ..geometry.camera import camera_view
-from ..geometry.intersect import inside_box, ray_box
-from ..geometry.mesh import Surfaces, occluded, surface_hit
+from ..geometry.intersect import inside_box
+from ..geometry.mesh import Surfaces, occluded
 from ..geometry.raster import RasterView, view_ray
 from ..media.grid import lattice_trilinear_vec3
 from ..media.volume import Media, in_scatter_at, scattering_at, sigma_t_at
@@ -40,7 +40,7 @@ from ..physics.constants import INF, PI, RAY_EPS
 from ..physics.lights import Light, light_incident, step_mean_irradiance
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Bias, Quality, Setting, SettingsError, Stage, Technique
-from ..shading import light_transmittance, marched_optical_depth, surface_direct
+from ..shading import camera_segment, light_transmittance, marched_optical_depth, surface_direct
 from ..upload import SceneUploads, light_structs, lights_array, pinhole, sky_light_structs
 
 NAME = "raymarch"
@@ -149,10 +149,7 @@ def march_single_scattering(offset: int, cam: RasterView, m: Media, s: Surfaces,
     py = tid / cam.width
     o, d = view_ray(cam, px, py)
     rng = wp.uint32(0)  # unused: transmittance is marched, not estimated
-    hit, t_surf, n, face = surface_hit(s, o, d, INF)
-    a, b = ray_box(o, d, m.all_min, m.all_max)
-    ta = wp.max(a, 0.0)
-    tb = wp.min(b, t_surf)
+    hit, t_surf, n, face, ta, tb = camera_segment(m, s, o, d)
     tr = wp.vec3(1.0)
     L = wp.vec3(0.0)
     if ta < tb:
@@ -194,7 +191,7 @@ class Raymarch(Technique):
 
     NAME = NAME
     SETTINGS = SETTINGS
-    QUALITY = Quality("steps", 8, 1024, 2, tied={"shadow_steps": 1},
+    QUALITY = Quality(knob="steps", start=8, top=1024, order=2, tied={"shadow_steps": 1},
                       biases=(Bias("sky_samples", factor=4, order=1, when="sky"), Bias("shadow_grid", exact=0)))
     LEAVES_OUT = ("multiple scattering",)
 

@@ -74,7 +74,7 @@ from ..physics.constants import INF
 from ..physics.lights import DIRECTIONAL, Light, light_incident
 from ..physics.phase import Phase, phase_eval, phase_struct
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
-from ..pipeline import Bias, Quality, Setting, Stage, Technique
+from ..pipeline import Quality, Setting, Stage, Technique
 from ..scene.model import RBFMedium
 from ..upload import MediaBuffers, SceneUploads, medium_bounds, pinhole, scene_bounds
 
@@ -447,7 +447,7 @@ class RBFPropagation(Technique):
 
     NAME = NAME
     SETTINGS = SETTINGS
-    QUALITY = Quality("grid", 8, 256, 1, tied={"steps": 4})
+    QUALITY = Quality(knob="grid", start=8, top=256, order=1, tied={"steps": 4})
     LEAVES_OUT = ("multiple scattering",)
 
     def __init__(self, scene, device, settings, progress=False):

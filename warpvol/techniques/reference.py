@@ -352,7 +352,7 @@ class Reference(Technique):
 
     NAME = NAME
     SETTINGS = SETTINGS
-    QUALITY = Quality("spp", 16, 1 << 20, 0.5)
+    QUALITY = Quality(knob="spp", start=16, top=1 << 20, order=0.5)
     QUALITY_SEED = "seed"  # the error estimate: two runs of independent samples
     LEAVES_OUT = ()
     GATHERS_SKY = True

@@ -1,0 +1,299 @@
+"""Renders to an accuracy asked for: ``target_error`` (a technique's quality ladder, its error
+extrapolated from three levels and measured against the next, its biases at their limits) and
+``technique = "auto"`` (the fastest technique whose measured error on the scene's family meets
+the target). ``warpvol.render`` documents both; results/target-error measures how well they hold."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from .metrics import error_scale, relative_rmse
+from .pipeline import Frame, SettingsError, has_sky
+from .renderer import Renderer, render_once, technique_class, technique_names
+from .scene import load_scene
+
+
+#: The reference stops at this fraction of ``target_error`` (see ``render_to_target``).
+SPP_MARGIN = 0.8
+
+#: The slowest convergence ``remaining_error`` trusts, as a power of the knob's nominal rate
+#: 2^-order per doubling: an observed ratio below 2^-1.5 order is taken as a lucky
+#: cancellation between two levels, not as convergence that fast.
+RATE_FLOOR = 1.5
+
+
+def remaining_error(images: list, spreads: list, order: float) -> float:
+    """The relative RMSE still in the finest of three levels a, b, c of a quality knob (each
+    one doubling of it), estimated from the steps u = b - a and v = c - b.
+
+    Model: a level's error is an aligned part that falls by r per doubling (x r^k g, the
+    Richardson assumption) plus a part unrelated from level to level (m_k, mutually
+    orthogonal, also falling by r): a step pattern that moves when the step count changes
+    makes the second. Then |v| = r |u| and u.v = r A - r^2 B / (1 + r^2), where A + B = |u|^2
+    splits |u|^2 into the aligned and the unrelated part, and the error of c is
+    r^2 sqrt(A / (1 - r)^2 + B / (1 + r^2)): r |v| / (1 - r) when the levels' errors line up
+    (Richardson), r |v| / sqrt(1 + r^2) when they are unrelated (where Richardson alone
+    over-estimates up to 4x). ``spreads``: each level's own relative standard error (0 for a
+    deterministic technique); that noise is taken out of |u|^2, |v|^2 and u.v. r is kept in
+    [2^-(RATE_FLOOR order), 0.95]. Norms are relative_rmse's: over c's mean."""
+    a, b, c = images[-3:]
+    s0, s1, s2 = (x * x for x in spreads[-3:])
+    scale = error_scale(c)
+    if scale <= 0.0:
+        return 0.0 if not (np.any(a) or np.any(b)) else float("inf")
+    u, v = (b - a) / scale, (c - b) / scale
+    uu = max(float(np.mean(u * u)) - s0 - s1, 0.0)
+    vv = max(float(np.mean(v * v)) - s1 - s2, 0.0)
+    uv = float(np.mean(u * v)) + s1
+    if uu <= 0.0:
+        return float(np.sqrt(vv))
+    r = min(max(np.sqrt(vv / uu), 0.5 ** (RATE_FLOOR * order)), 0.95)
+    B = min(max((uu - uv / r) / (1.0 + r / (1.0 + r * r)), 0.0), uu)
+    return float(r * r * np.sqrt((uu - B) / (1.0 - r) ** 2 + B / (1.0 + r * r)))
+
+
+def measured_error(coarse, fine, order: float, coarse_spread: float = 0.0, fine_spread: float = 0.0) -> float:
+    """The relative RMSE of level ``coarse``, measured against the next level ``fine`` (one
+    doubling finer) instead of extrapolated: ``remaining_error``'s error model one level on.
+    The step w = fine - coarse is relative_rmse(coarse, fine).
+
+    If the error falls by r per doubling, |w| is the coarse level's error times 1 - r where
+    the levels' errors line up (Richardson), and times sqrt(1 + r^2) where they are unrelated.
+    At the knob's nominal rate r = 2^-order the estimate is |w| times the geometric mean of the
+    two corrections, 1 / sqrt((1 - r) sqrt(1 + r^2)): 1.34 for order 1, 1.14 for order 2. It is
+    then 0.67x (aligned) to 1.49x (unrelated) the error at that rate, 2x apart at most. The
+    observed ratio of successive steps is not used: its noise near r = 1 blows up 1 / (1 - r).
+    The levels' own noise (``*_spread``, as in ``remaining_error``) is taken out of the step
+    and the coarse level's put back: the coarse image's error includes its noise."""
+    r = 0.5**order
+    step = max(relative_rmse(coarse, fine) ** 2 - coarse_spread**2 - fine_spread**2, 0.0)
+    return float(np.sqrt(step / ((1.0 - r) * np.sqrt(1.0 + r * r)) + coarse_spread**2))
+
+
+def bias_error(image, limit_image, bias) -> float:
+    """The relative RMSE a ``Bias`` setting leaves in ``image``, measured against a render with
+    the setting at its limit (``limit_image``, else the same): the difference itself where the
+    limit is exact, else the difference over 1 - factor^-order (the part a render at factor x
+    the value still misses, as an error of that order). Where the technique is seeded both
+    renders take the same seeds, so their noise is common and cancels in the difference
+    (common random numbers): none is taken out (taking out both spreads hid a light-pass bias
+    of 0.022 under a direction noise of 0.02 on random cloud 2)."""
+    d = relative_rmse(image, limit_image)
+    return float(d if bias.exact is not None else d / (1.0 - float(bias.factor) ** -bias.order))
+
+
+def check_target(value) -> float:
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and 0.0 < float(value) < 1.0
+    if not ok:
+        raise SettingsError(f"setting target_error={value!r} is out of range (allowed: 0 < target_error < 1; the "
+                            "relative RMSE of the image against the technique's converged answer)")
+    return float(value)
+
+
+def _with_image(frame: Frame, image: np.ndarray, settings: dict) -> Frame:
+    """``frame`` with its own copy of ``image`` (as float32) and ``settings``."""
+    return Frame(image.astype(np.float32), frame.shape, frame.technique, frame.device, settings, frame.stages,
+                 frame.leaves_out)
+
+
+#: Rounds of ladder-then-biases ``render_to_target`` takes at most (each round moves one bias
+#: setting to its limit or tightens the ladder's share of the target).
+MAX_ROUNDS = 8
+
+
+def render_to_target(scene, technique: str, device, progress: bool, target: float, settings: dict) -> Frame:
+    """Render to ``target`` against the technique's converged answer: the ladder of its
+    ``Quality`` knob, then each ``Bias`` setting's bias measured at the level found (see
+    ``render``)."""
+    cls = technique_class(technique)
+    q = getattr(cls, "QUALITY", None)
+    if q is None:
+        raise SettingsError(f"{technique}: target_error is not supported yet (supported: "
+                            f"{', '.join(n for n in technique_names() if getattr(technique_class(n), 'QUALITY', None))})")
+    for key in (q.knob, *(q.tied or {})):
+        if key in settings:
+            raise SettingsError(f"{technique}: give target_error or {key}, not both (target_error chooses {key})")
+    seed = getattr(cls, "QUALITY_SEED", None)
+    if seed is not None and seed in settings:
+        raise SettingsError(f"{technique}: give target_error or {seed}, not both (target_error draws two)")
+    scene = load_scene(scene)
+    base = {**getattr(cls, "QUALITY_HOLD", {}), **settings}
+    defaults = {k: s.default for k, s in cls.SETTINGS.items()}
+    if q.knob == "spp":  # unbiased Monte Carlo: its noise is the whole error
+        return _render_spp(scene, technique, device, progress, target, base, q, seed)
+
+    sky = has_sky(scene)
+    held: dict = {}  # bias settings moved to their limit
+    aim = target  # the ladder's share of the target
+    first = q.start
+    for _ in range(MAX_ROUNDS):
+        current = {**base, **held}
+        frame, estimate, level = _ladder(scene, technique, device, progress, aim, current, q, seed, first)
+        biases, limits = {}, {}
+        for b in q.biases:
+            value = current.get(b.setting, defaults[b.setting])
+            if b.when == "sky" and not sky:
+                continue
+            hi = cls.SETTINGS[b.setting].hi
+            limit = b.exact if b.exact is not None else min(value * b.factor, hi)
+            if limit == value or (b.exact is None and value == 0):  # at its limit, or off (0: left out)
+                continue
+            extra = {**current, b.setting: type(value)(limit)}
+            img = _level_image(scene, technique, device, progress, extra, q, seed, level)
+            biases[b.setting] = bias_error(frame.image, img, b)
+            limits[b.setting] = type(value)(limit)
+        total = float(np.sqrt(estimate**2 + sum(e * e for e in biases.values())))
+        frame.bias_estimates = dict(biases)
+        frame.moved_to_limit = dict(held)
+        if total <= target:
+            frame.error_estimate = total
+            return frame
+        movable = {k: e for k, e in biases.items() if k not in settings}
+        worst = max(movable, key=movable.get) if movable else None
+        rest = target**2 - sum(e * e for e in biases.values())
+        if worst is not None and (movable[worst] > 0.5 * target or rest < (0.25 * target) ** 2):
+            held[worst] = limits[worst]  # this setting's bias is the larger part: take it to its limit
+            first = max(q.start, level // 4)
+            continue
+        if rest <= 0.0 or 2 * level > q.top:
+            break
+        aim = min(aim, float(np.sqrt(rest)))  # the biases are small: the ladder aims lower
+        first = max(q.start, level // 4)
+    frame.error_estimate = total
+    warnings.warn(f"{technique}: error estimate {total:.3g} above target_error {target:.3g} at {frame.settings} "
+                  f"(biases measured: {', '.join(f'{k} {e:.3g}' for k, e in biases.items()) or 'none'})",
+                  RuntimeWarning, stacklevel=3)
+    return frame
+
+
+def _two_seeds(scene, technique, device, progress, settings: dict, seed: str):
+    """The mean of two independent answers (``seed`` 1 and 2) at ``settings`` and its relative
+    standard error: (frame, mean image, spread)."""
+    a = render_once(scene, technique, device, progress, **{**settings, seed: 1})
+    b = render_once(scene, technique, device, progress, **{**settings, seed: 2})
+    ia, ib = a.image.astype(np.float64), b.image.astype(np.float64)
+    mean = 0.5 * (ia + ib)
+    frame = _with_image(a, mean, {**a.settings, seed: "1 and 2, averaged"})
+    return frame, mean, relative_rmse(mean + 0.5 * np.abs(ia - ib), mean)
+
+
+def _level_image(scene, technique, device, progress, settings: dict, q, seed, level: int) -> np.ndarray:
+    """One level's image (the mean of two seeds where the technique is seeded)."""
+    settings = {**settings, **q.level_settings(level)}
+    if seed is None:
+        return render_once(scene, technique, device, progress, **settings).image.astype(np.float64)
+    return _two_seeds(scene, technique, device, progress, settings, seed)[1]
+
+
+def _render_spp(scene, technique, device, progress, target: float, settings: dict, q, seed: str) -> Frame:
+    """The reference: two runs of independent samples, raised until the standard error of
+    their mean is under SPP_MARGIN of the target."""
+    level, limit = max(1, q.start // 2), q.top // 2  # samples of each run
+    # two runs give one difference a pixel, which runs low where a few paths carry much of
+    # a pixel's variance (measured: the truth up to 1.16x the estimate on random scenes), so
+    # the samples are raised until the estimate is under SPP_MARGIN of the target
+    aim = SPP_MARGIN * target
+    while True:
+        frame, _, estimate = _two_seeds(scene, technique, device, progress, {**settings, q.knob: level}, seed)
+        if estimate <= aim or level >= limit:
+            break
+        # the error falls as spp^-1/2: jump to the count the target needs
+        level = min(limit, int(level * max(2.0, (estimate / aim) ** (1.0 / q.order))))
+    frame.settings[q.knob] = 2 * level
+    frame.error_estimate = estimate
+    if estimate > target:
+        warnings.warn(f"{technique}: error estimate {estimate:.3g} above target_error {target:.3g} at {q.knob} = "
+                      f"{2 * level} (the most it may use)", RuntimeWarning, stacklevel=4)
+    return frame
+
+
+def _ladder(scene, technique, device, progress, target: float, settings: dict, q, seed, first: int):
+    """Double the knob from ``first`` until the error is at most ``target``: at the first level
+    whose three-level extrapolation (``remaining_error``) meets it, one more level is rendered
+    and the level's error measured against it (``measured_error``). Returns (frame, estimate,
+    level)."""
+    r = None
+    if seed is None:
+        r = Renderer(scene, technique, device, progress, **{**settings, **q.level_settings(first)})
+        r.technique.one_shot = True
+    level, images, spreads, candidate = first, [], [], None
+    while True:
+        if r is not None:
+            frame = r.render()
+            images.append(frame.image.astype(np.float64))
+            spreads.append(0.0)
+        else:  # seeded (jitter, turned directions): each level is the mean of two seeds
+            frame, mean, spread = _two_seeds(scene, technique, device, progress,
+                                             {**settings, **q.level_settings(level)}, seed)
+            images.append(mean)
+            spreads.append(spread)
+        if candidate is not None:  # the previous level met the target by extrapolation: measure it
+            measured = measured_error(images[-2], images[-1], q.order, spreads[-2], spreads[-1])
+            if measured <= target:
+                return candidate, measured, level // 2
+            candidate = None
+        estimate = float("inf")
+        if len(images) >= 3:
+            estimate = float(np.hypot(remaining_error(images, spreads, q.order), spreads[-1]))
+        if 2 * level > q.top:  # no finer level to measure against: the extrapolation stands
+            frame = _with_image(frame, images[-1], frame.settings)
+            if not np.isfinite(estimate) and len(images) >= 2:  # the coarser level's measured error, one doubling on
+                estimate = 0.5**q.order * measured_error(images[-2], images[-1], q.order, spreads[-2], spreads[-1])
+            return frame, estimate, level
+        if estimate <= target:  # a copy: the next level may reuse the output buffer
+            candidate = _with_image(frame, images[-1], frame.settings)
+        level *= 2
+        if r is not None:
+            r.update(settings=q.level_settings(level))
+
+
+def render_auto(scene, device, progress: bool, settings: dict) -> Frame:
+    """``technique="auto"``: the fastest technique whose measured error against the physical
+    answer (all orders of scattering: ``model_error.json``, from results/accuracy-vs-time) on
+    the families of the scene's kind of media (the worst of them) meets ``target_error``, at
+    the settings that measured it; else the reference, to the target by its own noise."""
+    import json
+    from importlib import resources
+
+    if "target_error" not in settings:
+        raise SettingsError("auto: give target_error (allowed: 0 < target_error < 1): the technique is chosen to meet it")
+    target = check_target(settings.pop("target_error"))
+    if settings:
+        raise SettingsError(f"auto: unknown setting {sorted(settings)[0]!r} (allowed: target_error; the chosen "
+                            "technique's settings come with it)")
+    scene = load_scene(scene)
+    kinds = sorted({m.type for m in scene.media})
+    table = json.loads(resources.files("warpvol").joinpath("model_error.json").read_text())
+    # every measured family of the scene's kind of media; per technique its worst error there
+    families = [name for name, f in table["families"].items() if f["media"] == kinds]
+    measured = {}
+    for name in families:
+        for t, m in table["families"][name]["techniques"].items():
+            if all(t in table["families"][n]["techniques"] for n in families):
+                old = measured.get(t)
+                if old is None or m["error"] > old["error"]:
+                    measured[t] = {**m, "ms": max(m["ms"], old["ms"]) if old else m["ms"], "family": name}
+    family = (families[0] if len(families) == 1 else
+              f"the {len(families)} families of {' and '.join(kinds)} media" if families else None)
+    why = f"no technique's measured error on {family or 'this kind of media'} meets {target:g}"
+    if measured:
+        best = min(measured.items(), key=lambda kv: kv[1]["error"])
+        why += f" (best: {best[0]} {best[1]['error']:.3g})"
+    for name, m in sorted(measured.items(), key=lambda kv: kv[1]["ms"]):
+        if m["error"] <= target:
+            try:
+                renderer = Renderer(scene, name, device, progress, **m["settings"])
+            except SettingsError:
+                continue
+            renderer.technique.one_shot = True
+            frame = renderer.render()
+            worst = f" (the worst: {m['family']})" if len(families) > 1 else ""
+            frame.choice = (f"{name}: measured error {m['error']:.3g} <= {target:g} on {family}{worst} in {m['ms']:.0f} ms "
+                            f"({', '.join(f'{k}={v}' for k, v in m['settings'].items())}; {table['device']}, "
+                            f"{table['image']})")
+            return frame
+    frame = render_to_target(scene, "reference", device, progress, target, {})
+    frame.choice = f"reference: {why}; to {target:g} by its own noise"
+    return frame
