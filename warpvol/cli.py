@@ -151,9 +151,7 @@ def cmd_bench(args) -> int:
 
     if args.list or not args.sweep:
         for name, sweep in SWEEPS.items():
-            issue = f"issue {sweep.issue}" if sweep.issue else "no issue yet"
-            state = "runnable" if sweep.available else f"waits for {sweep.technique} ({issue})"
-            print(f"{name:<22} {state:<40} {sweep.doc}")
+            print(f"{name:<38} {sweep.technique:<21} {sweep.doc}")
         return 0
     if args.sweep[0] == "report":
         names = args.sweep[1:] or [n for n in SWEEPS if os.path.isdir(os.path.join(args.out, n))]
@@ -166,7 +164,6 @@ def cmd_bench(args) -> int:
     for name in args.sweep:
         if name not in SWEEPS:
             raise ValueError(f"unknown sweep {name!r} (allowed: {', '.join(SWEEPS)}; see --list)")
-        SWEEPS[name].points(args.quick)  # a sweep whose technique has not landed says so here
     if not _on_cluster(args):
         device = dev.pick(args.device)
         for name in args.sweep:

@@ -1,0 +1,149 @@
+"""Sweeps of particle_glow: the glowy-light paper's figure 5, physics against the reference, speed against raymarch, stability."""
+
+from __future__ import annotations
+
+import statistics
+import time
+
+import numpy as np
+
+import warpvol as wv
+
+from ..harness import reference_image, time_frames
+from .common import score
+
+
+def glow_scene(quick: bool, width: int = 320, height: int = 240):
+    """The built-in dusty-lamp: a point lamp in dusty air (homogeneous, sigma_t 0.25, albedo
+    0.9, isotropic), a floor, and a shade beside the lamp casting a shadow through the dust."""
+    if quick:
+        width, height = 32, 24
+    return wv.load_scene("dusty-lamp", [f"camera.width={width}", f"camera.height={height}"])
+
+
+def glow_figure5_grid(quick: bool) -> list[dict]:
+    sets = [(2.0, 0.1, 0), (0.0, 0.1, 0), (0.5, 0.5, 0), (0.5, 0.5, 1)]
+    return [{"mu": m, "sigma": sg, "cdf": c} for m, sg, c in (sets[:2] if quick else sets)]
+
+
+def glow_figure5(params: dict, device: str, quick: bool) -> dict:
+    """Figure 5's parameter sets (mu, sigma; A: 2, 0.1; B: 0, 0.1) and the defaults, with the
+    log-normal CDF the text names (cdf 0) and the normal CDF equation 2 prints (cdf 1): the
+    image, its frame time, the cells' mean density and the light the glow adds."""
+    scene = glow_scene(quick)
+    settings = {"mu": params["mu"], "sigma": params["sigma"], "density_cdf": params["cdf"]}
+    r = wv.Renderer(scene, technique="particle_glow", device=device, **settings)
+    row = time_frames(r, repeats=2 if quick else 3, invalidate=("camera",))
+    plain = wv.render(scene, technique="particle_glow", device=device, glow=0, **settings).image
+    image = row["frame"].image
+    row["table"] = {"mean density d": float(r.diagnostics()["density"].mean()),
+                    "image mean": float(image.mean()),
+                    "light the glow adds": f"{image.mean() / plain.mean() - 1:+.1%}"}
+    row["images"] = {"image": image}
+    row["scene"] = f"dusty-lamp {scene.camera.width}x{scene.camera.height}, 128 steps"
+    return row
+
+
+GLOW_TECHNIQUES = {"particle_glow": {}, "particle_glow (glow = 0)": {"glow": 0},
+                   "particle_glow (specular 0.5)": {"specular": 0.5}, "raymarch": {"steps": 128},
+                   "light_shafts": {"steps": 128, "block": 4}}
+
+
+def glow_physics_grid(quick: bool) -> list[dict]:
+    names = list(GLOW_TECHNIQUES)
+    return [{"technique": t} for t in (names[:2] if quick else names)]
+
+
+def glow_physics(params: dict, device: str, quick: bool) -> dict:
+    """How far the glow is from physics: the same scene (its medium already homogeneous, with
+    the dust's sigma_t and phase function) by the reference, single and multiple
+    scattering, against particle_glow, its direct sample alone (glow = 0), raymarch and
+    light_shafts at 128 steps."""
+    name = params["technique"]
+    scene = glow_scene(quick, 160, 120)
+    r = wv.Renderer(scene, technique=name.split(" ")[0], device=device, **GLOW_TECHNIQUES[name])
+    row = time_frames(r, repeats=2 if quick else 3, invalidate=("camera",))
+    spp = 16 if quick else 512
+    score(row, scene, device, spp)
+    ms, _ = reference_image(scene, device, spp=spp, max_bounces=-1, pixel_area=0)
+    image = row["frame"].image
+    row["rel_rmse_multiple"] = wv.relative_rmse(image, ms)
+    row["mean_ratio"] = float(image.mean() / ms.mean())
+    row["scene"] = f"dusty-lamp {scene.camera.width}x{scene.camera.height}"
+    return row
+
+
+def glow_speed_grid(quick: bool) -> list[dict]:
+    return [{"width": 64 if quick else 640}]
+
+
+def glow_speed(params: dict, device: str, quick: bool) -> dict:
+    """particle_glow against the raymarch baseline with the same 128 steps on the same scene
+    (dusty-lamp at 640x480, camera moving), frames timed in alternation so both see the same
+    machine; the issue's bound: at most 1.5x."""
+    w = params["width"]
+    scene = glow_scene(False, w, w * 3 // 4)
+    rs = {"particle_glow": wv.Renderer(scene, technique="particle_glow", device=device),
+          "raymarch": wv.Renderer(scene, technique="raymarch", device=device, steps=128)}
+    for r in rs.values():
+        r.render()
+    times = {k: [] for k in rs}
+    for _ in range(2 if quick else 5):
+        for k, r in rs.items():
+            r.touch("camera")
+            t = time.perf_counter()
+            r.render()
+            times[k].append(time.perf_counter() - t)
+    glow, ray = (statistics.median(times[k]) * 1e3 for k in ("particle_glow", "raymarch"))
+    row = time_frames(rs["particle_glow"], repeats=1, invalidate=("camera",))
+    row["table"] = {"particle_glow ms": glow, "raymarch ms (128 steps)": ray, "glow / raymarch": f"{glow / ray:.2f}"}
+    row["scene"] = f"dusty-lamp {w}x{w * 3 // 4}, 128 steps"
+    return row
+
+
+def glow_stability_grid(quick: bool) -> list[dict]:
+    steps = (0.005,) if quick else (0.005, 0.0005)
+    return ([{"glow": 1, "anchor": a, "grain": g, "step": st} for a in (0, 1) for g in ("world", "screen")
+             for st in steps] + [{"glow": 0, "anchor": 0, "grain": "world", "step": st} for st in steps])
+
+
+def _moved_lamp(dx: float, move_scene: bool, width: int, height: int) -> dict:
+    """dusty-lamp seen from a camera moved dx along x; ``move_scene``: the scene moved by -dx
+    instead (the same picture of the lamp, but the grain textures, fixed in the world, now
+    stay put on the screen: the counterfactual of screen-space grain)."""
+    from warpvol.scene.procedural import dusty_lamp
+
+    d = dusty_lamp()
+    d["camera"]["width"], d["camera"]["height"] = width, height
+    if move_scene:
+        d["lights"][0]["position"][0] -= dx
+        d["media"][0]["center"][0] -= dx
+        for surface in d["surfaces"]:
+            surface["center"][0] -= dx
+    else:
+        d["camera"]["origin"][0] += dx
+        d["camera"]["target"][0] += dx
+    return d
+
+
+def glow_stability(params: dict, device: str, quick: bool) -> dict:
+    """Temporal stability: a camera moving ``step`` along x a frame (4 frames); the mean
+    frame-to-frame change relative to the image's mean, and the fraction of pixels that pop
+    (change by more than 10%). Grain that shimmers would leave a floor as step -> 0; grain
+    that moves with the world changes in proportion to the motion (change / step constant).
+    grain = screen: the counterfactual of grain fixed to the screen (the scene moved instead)."""
+    w, h = (32, 24) if quick else (160, 120)
+    frames = []
+    for k in range(4):
+        scene = _moved_lamp(params["step"] * k, params["grain"] == "screen", w, h)
+        frames.append(wv.render(scene, technique="particle_glow", device=device, glow=params["glow"],
+                                anchor=params["anchor"]).image.astype(np.float64).mean(-1))
+    change = [np.abs(b - a).mean() / a.mean() for a, b in zip(frames, frames[1:])]
+    pops = [np.mean(np.abs(b - a) > 0.1 * np.maximum(a, 1e-3)) for a, b in zip(frames, frames[1:])]
+    r = wv.Renderer(_moved_lamp(0.0, False, w, h), technique="particle_glow", device=device, glow=params["glow"],
+                    anchor=params["anchor"])
+    row = time_frames(r, repeats=1, invalidate=("camera",))
+    row["table"] = {"mean change": float(np.mean(change)), "change / step": float(np.mean(change) / params["step"]),
+                    "pixels that pop (> 10%)": float(np.mean(pops))}
+    row["scene"] = f"dusty-lamp {w}x{h}, camera moving along x"
+    return row
