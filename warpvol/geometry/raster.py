@@ -255,13 +255,17 @@ KEY_LIMIT = wp.constant(KEY_RANGE)
 
 
 @wp.func
-def raster_rect(v: RasterView, a: wp.vec3, b: wp.vec3, c: wp.vec3, face: int, i0: int, x0: int, x1: int, y0: int,
-                y1: int, with_keys: int, t_scale: float, out: wp.array(dtype=Any)):
-    """Rasterise the pixels [x0, x1] x [y0, y1] of triangle ``face`` (abc) into view v, a part of its
+def raster_rect(v: RasterView, a: wp.vec3, b: wp.vec3, c: wp.vec3, face: int, i0: int, rect: wp.vec4i,
+                with_keys: int, t_scale: float, out: wp.array(dtype=Any)):
+    """Rasterise the pixels [x0, x1] x [y0, y1] (``rect``) of triangle ``face`` (abc) into view v, a part of its
     box whose first column is i0: per covered pixel, the nearest distance into ``out`` (float), or
     (with_keys = 1, ``out`` int64) the nearest (distance x t_scale, face) as one key. Image
     coordinates step from column i0 whatever the part, so every split of the box gives the same
     pixels the same values."""
+    x0 = rect[0]
+    x1 = rect[1]
+    y0 = rect[2]
+    y1 = rect[3]
     e0, e1, e2, facing = triangle_edges(v, a, b, c)
     if not facing:
         return
@@ -344,7 +348,7 @@ def raster_views(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.array
         v = views[k]
         i0, j0, i1, j1 = triangle_box(v, a, b, c, m, r2)
         if i0 <= i1 and j0 <= j1:
-            raster_rect(v, a, b, c, f, i0, i0, i1, j0, j1, with_keys, t_scale, out)
+            raster_rect(v, a, b, c, f, i0, wp.vec4i(i0, i1, j0, j1), with_keys, t_scale, out)
 
 
 @wp.kernel
@@ -380,8 +384,8 @@ def raster_view_tiles(offset: int, points: wp.array(dtype=wp.vec3), indices: wp.
             nx = (i1 - i0) / TILE + 1
             x0 = i0 + (local % nx) * TILE
             y0 = j0 + (local / nx) * TILE
-            raster_rect(v, a, b, c, f, i0, x0, wp.min(x0 + TILE - 1, i1), y0, wp.min(y0 + TILE - 1, j1), with_keys,
-                        t_scale, out)
+            rect = wp.vec4i(x0, wp.min(x0 + TILE - 1, i1), y0, wp.min(y0 + TILE - 1, j1))
+            raster_rect(v, a, b, c, f, i0, rect, with_keys, t_scale, out)
             break
         local -= n
 

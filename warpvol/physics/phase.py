@@ -210,6 +210,21 @@ def sample_tabulated_cos(table: wp.array(dtype=float), offset: int, n: int, u: f
     return wp.clamp(-1.0 + (float(lo) + wp.clamp(s, 0.0, 1.0)) * h, -1.0, 1.0)
 
 
+@wp.struct
+class PhaseFn:
+    """A phase function and the table it reads (``phase_struct``'s two parts), as one argument."""
+
+    phase: Phase
+    table: wp.array(dtype=float)
+
+
+def phase_fn(phase: Phase, table: wp.array) -> PhaseFn:
+    """``phase`` and its device ``table`` as one ``PhaseFn``."""
+    pf = PhaseFn()
+    pf.phase, pf.table = phase, table
+    return pf
+
+
 @wp.func
 def direction_from_cos(d: wp.vec3, cos_theta: float, u: float) -> wp.vec3:
     """The unit vector at angle acos(cos_theta) from d, azimuth 2 pi u."""

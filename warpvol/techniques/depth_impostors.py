@@ -70,7 +70,7 @@ from ..media.particles import BlockCloud, Blocks, ParticleBuffers, Particles
 from ..physics.brdf import brdf_eval
 from ..physics.constants import INF, PI, RAY_EPS
 from ..physics.lights import Light, light_incident
-from ..physics.phase import Phase, phase_eval, phase_struct, phase_toward
+from ..physics.phase import Phase, PhaseFn, phase_eval, phase_fn, phase_struct, phase_toward
 from ..physics.transmittance import transmittance_rgb
 from ..pipeline import Bias, Quality, Setting, Stage, Technique
 from ..scene.procedural import split_blocks
@@ -194,6 +194,38 @@ def light_transmittance(m: LightMap, P: Particles, l: int, light: Light, x: wp.v
     return acc / (w0 + 6.0 * w1)
 
 
+@wp.struct
+class CloudLight:
+    """What lights the cloud: the light pass's map of the scene's lights and of the sky's
+    directions (an empty array: no sky), and the particles the maps were made from."""
+
+    m: LightMap
+    lights: wp.array(dtype=Light)
+    m_sky: LightMap
+    sky: wp.array(dtype=Light)
+    P: Particles
+
+
+@wp.struct
+class Shaded:
+    """The shade stage's output: each textured instance's texels (from ``first`` of it) and each
+    one-particle instance's radiance."""
+
+    texels: wp.array(dtype=wp.vec3)
+    first: wp.array(dtype=int)
+    particles: wp.array(dtype=wp.vec3)
+
+
+@wp.struct
+class SurfaceLayer:
+    """The nearest surface per pixel (distance, INF: none; reflected light) and whether it cuts
+    the impostors by depth (``object_depth``)."""
+
+    depth: wp.array(dtype=float)
+    colour: wp.array(dtype=wp.vec3)
+    object_depth: int
+
+
 @wp.func
 def in_scatter(m: LightMap, P: Particles, lights: wp.array(dtype=Light), ph: Phase, table: wp.array(dtype=float),
                x: wp.vec3, w_out: wp.vec3, widen: float, sky: int) -> wp.vec3:
@@ -214,12 +246,17 @@ def in_scatter(m: LightMap, P: Particles, lights: wp.array(dtype=Light), ph: Pha
 
 
 @wp.kernel
-def shade_texels(offset: int, B: Blocks, imp: Impostors, m: LightMap, P: Particles, lights: wp.array(dtype=Light),
-                 m_sky: LightMap, sky: wp.array(dtype=Light), ph: Phase, table: wp.array(dtype=float), eye: wp.vec3,
-                 widen: float, inst: wp.array(dtype=int), first: wp.array(dtype=int),
-                 radiance: wp.array(dtype=wp.vec3)):
+def shade_texels(offset: int, B: Blocks, imp: Impostors, cl: CloudLight, pf: PhaseFn, eye: wp.vec3, widen: float,
+                 inst: wp.array(dtype=int), first: wp.array(dtype=int), radiance: wp.array(dtype=wp.vec3)):
     """Thread (textured instance j, texel k): what the texel's segment scatters toward the
     eye, per unit opacity: albedo (sum_l p E_l T_l + the sky's) at its mid-depth point."""
+    m = cl.m
+    P = cl.P
+    lights = cl.lights
+    m_sky = cl.m_sky
+    sky = cl.sky
+    ph = pf.phase
+    table = pf.table
     tid = wp.tid() + offset
     T2 = B.res * B.res
     j = tid / T2
@@ -241,10 +278,12 @@ def shade_texels(offset: int, B: Blocks, imp: Impostors, m: LightMap, P: Particl
 
 @wp.kernel
 def shade_particles(offset: int, B: Blocks, direct: wp.array(dtype=wp.vec3), travel: wp.array(dtype=wp.vec3),
-                    L: int, particle: wp.array(dtype=int), ph: Phase, table: wp.array(dtype=float), eye: wp.vec3,
-                    sky: int, out: wp.array(dtype=wp.vec3)):
+                    L: int, particle: wp.array(dtype=int), pf: PhaseFn, eye: wp.vec3, sky: int,
+                    out: wp.array(dtype=wp.vec3)):
     """One-particle instance i: adds albedo sum_l p(travel_l . w_eye) E_l T_l (sphere means);
     ``sky`` = 1: the lights are a sky's directions, the sum divided by sum_l p."""
+    ph = pf.phase
+    table = pf.table
     i = wp.tid() + offset
     p = particle[i]
     w = wp.normalize(eye - B.centre[i])
@@ -260,13 +299,17 @@ def shade_particles(offset: int, B: Blocks, direct: wp.array(dtype=wp.vec3), tra
 
 
 @wp.kernel
-def shade_surfaces(offset: int, cam: RasterView, s: Surfaces, m: LightMap, P: Particles,
-                   lights: wp.array(dtype=Light), m_sky: LightMap, sky: wp.array(dtype=Light),
-                   depth: wp.array(dtype=float), colour: wp.array(dtype=wp.vec3)):
+def shade_surfaces(offset: int, cam: RasterView, s: Surfaces, cl: CloudLight, depth: wp.array(dtype=float),
+                   colour: wp.array(dtype=wp.vec3)):
     """Per pixel: the nearest surface's distance along the pixel ray (INF: none) and the
     light it reflects, through the cloud (the light pass) and past the other surfaces; the
     sky's as pi f L_sky sum_k cos_k T_k V_k / sum_k cos_k over its directions (exact for an
     unshadowed diffuse surface)."""
+    m = cl.m
+    P = cl.P
+    lights = cl.lights
+    m_sky = cl.m_sky
+    sky = cl.sky
     tid = wp.tid() + offset
     o, d = pixel_ray(cam, tid)
     hit, t, n, face = surface_hit(s, o, d, INF)
@@ -313,12 +356,15 @@ def bilinear3(a: wp.array(dtype=wp.vec3), base: int, T: int, fx: float, fy: floa
 
 @wp.kernel
 def gather(offset: int, cam: RasterView, B: Blocks, imp: Impostors, tl: TileLists,
-           texel_radiance: wp.array(dtype=wp.vec3), first: wp.array(dtype=int),
-           particle_radiance: wp.array(dtype=wp.vec3), surf_depth: wp.array(dtype=float),
-           surf_colour: wp.array(dtype=wp.vec3), object_depth: int, background: wp.vec3,
-           image: wp.array(dtype=wp.vec3)):
+           shaded: Shaded, surf: SurfaceLayer, background: wp.vec3, image: wp.array(dtype=wp.vec3)):
     """Front to back over the pixel's tile: each instance adds T alpha L and scales T by
     1 - alpha, its opacity cut where the surface lies inside it."""
+    texel_radiance = shaded.texels
+    first = shaded.first
+    particle_radiance = shaded.particles
+    surf_depth = surf.depth
+    surf_colour = surf.colour
+    object_depth = surf.object_depth
     tid = wp.tid() + offset
     o, d = pixel_ray(cam, tid)
     t_s = surf_depth[tid]
@@ -577,6 +623,12 @@ class DepthImpostors(Technique):
             return self.light_pass.map, wp.empty(0, dtype=Light, device=self.device)
         return self.sky_pass.map, self.sky
 
+    def _cloud_light(self) -> CloudLight:
+        cl = CloudLight()
+        cl.m, cl.lights, cl.P = self.light_pass.map, self.uploads.lights, self._cloud.struct
+        cl.m_sky, cl.sky = self._sky_args()
+        return cl
+
     def _shade(self):
         device, T = self.device, self.settings["impostor_res"]
         eye = wp.vec3(*self.scene.camera.origin)
@@ -589,9 +641,8 @@ class DepthImpostors(Technique):
             radii = self._cloud.radius
             widen = self.settings["widen"] * (float(np.median(radii)) if len(radii) else 0.0)
             dev.launch(shade_texels, self.n_textured * T * T,
-                       [self.blocks, self.impostors, self.light_pass.map, self._cloud.struct, self.uploads.lights,
-                        m_sky, sky, self.phase, self.table, eye, widen, self._textured, self._first,
-                        self.texel_radiance], device)
+                       [self.blocks, self.impostors, self._cloud_light(), phase_fn(self.phase, self.table), eye, widen,
+                        self._textured, self._first, self.texel_radiance], device)
         if self.n_instances > self.n_textured:
             n = self._cloud.struct.centres.shape[0]
             for lights, lp, is_sky in ((self.uploads.lights, self.light_pass, 0), (sky, self.sky_pass, 1)):
@@ -602,7 +653,7 @@ class DepthImpostors(Technique):
                 travel = wp.zeros(n * L, dtype=wp.vec3, device=device)
                 lp.direct(self._cloud, lights, self.settings["light_samples"], direct, travel)
                 dev.launch(shade_particles, self.n_instances, [self.blocks, direct, travel, L, self._particle_of,
-                                                               self.phase, self.table, eye, is_sky,
+                                                               phase_fn(self.phase, self.table), eye, is_sky,
                                                                self.particle_radiance], device)
 
     def _surfaces_lit(self):
@@ -610,10 +661,8 @@ class DepthImpostors(Technique):
         n = cam.width * cam.height
         self.surf_depth = wp.empty(n, dtype=float, device=self.device)
         self.surf_colour = wp.empty(n, dtype=wp.vec3, device=self.device)
-        dev.launch(shade_surfaces, n, [camera_view(pinhole(cam)), self.uploads.surfaces, self.light_pass.map,
-                                       self._cloud.struct, self.uploads.lights, *self._sky_args(), self.surf_depth,
-                                       self.surf_colour],
-                   self.device)
+        dev.launch(shade_surfaces, n, [camera_view(pinhole(cam)), self.uploads.surfaces, self._cloud_light(),
+                                       self.surf_depth, self.surf_colour], self.device)
 
     def _gather(self):
         cam, device = self.scene.camera, self.device
@@ -628,9 +677,12 @@ class DepthImpostors(Technique):
         z_far = float(np.max(np.linalg.norm(centres - eye, axis=1) + reach)) if len(centres) else 1.0
         tl = bin_spheres(view, self.blocks.centre, self.blocks.reach, z_far, device)
         self.image = wp.empty(n, dtype=wp.vec3, device=device)
-        dev.launch(gather, n, [view, self.blocks, self.impostors, tl, self.texel_radiance, self._first,
-                               self.particle_radiance, self.surf_depth, self.surf_colour,
-                               self.settings["object_depth"], wp.vec3(*self.scene.background), self.image], device)
+        shaded = Shaded()
+        shaded.texels, shaded.first, shaded.particles = self.texel_radiance, self._first, self.particle_radiance
+        surf = SurfaceLayer()
+        surf.depth, surf.colour, surf.object_depth = self.surf_depth, self.surf_colour, self.settings["object_depth"]
+        dev.launch(gather, n, [view, self.blocks, self.impostors, tl, shaded, surf, wp.vec3(*self.scene.background),
+                               self.image], device)
 
     def output(self):
         return self.image

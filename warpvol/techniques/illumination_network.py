@@ -92,7 +92,7 @@ from ..media.lightpass import REPRESENTATIONS, LightPass
 from ..media.particles import ParticleBuffers, Particles, particle_sigma_t
 from ..physics.constants import INV_4PI, PI
 from ..physics.lights import DIRECTIONAL, Light
-from ..physics.phase import Phase, phase_eval, phase_struct, phase_toward
+from ..physics.phase import Phase, PhaseFn, phase_eval, phase_fn, phase_struct, phase_toward
 from ..physics.sampling import orthonormal_basis
 from ..physics.sphere import fibonacci_directions
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
@@ -342,10 +342,12 @@ def rescale(offset: int, I: wp.array2d(dtype=Any), factor: float):
 
 @wp.kernel
 def outgoing_radiance(offset: int, P: Particles, eye: wp.vec3, dirs: wp.array(dtype=wp.vec3),
-                      I: wp.array2d(dtype=Any), dl: DirectLight, ph: Phase, table: wp.array(dtype=float),
-                      normalise: int, scale: float, out: wp.array(dtype=wp.vec3)):
+                      I: wp.array2d(dtype=Any), dl: DirectLight, pf: PhaseFn, normalise: int, scale: float,
+                      out: wp.array(dtype=wp.vec3)):
     """a (sum_d I[p, d] p(w_d . w_eye) 4 pi / D + sum_l p(w_l . w_eye) E_l T_l): the source
     radiance of particle p toward the eye; ``normalise``: the D weights sum to 1 instead."""
+    ph = pf.phase
+    table = pf.table
     p = wp.tid() + offset
     D = dirs.shape[0]
     to_eye = eye - P.centres[p]
@@ -718,8 +720,9 @@ class IlluminationNetwork(Technique):
         P = self.particles
         self.radiance = wp.zeros(max(n, 1), dtype=wp.vec3, device=device)
         if n:
-            dev.launch(outgoing_radiance, n, [P, pc.origin, self.dirs, self.I, self._direct_light(), self.phase,
-                                              self.table, self.settings["phase_norm"], self.scale, self.radiance],
+            dev.launch(outgoing_radiance, n, [P, pc.origin, self.dirs, self.I, self._direct_light(),
+                                              phase_fn(self.phase, self.table), self.settings["phase_norm"],
+                                              self.scale, self.radiance],
                        device, min_split=512)
             z_far = float(np.linalg.norm(self.centre - np.asarray(cam.origin)) + self.R)
             tl = bin_spheres(pc, P.centres, P.radius, z_far, device)

@@ -146,13 +146,17 @@ class VisibleSurface:
 
 @wp.kernel
 def view_segments(offset: int, cam: RasterView, m: Media, s: Surfaces, source: int,
-                  keys: wp.array(dtype=wp.int64), points: wp.array(dtype=wp.vec3), indices: wp.array(dtype=int),
-                  parent: wp.array(dtype=int), t_hit: wp.array(dtype=float), face: wp.array(dtype=int),
-                  segs: wp.array(dtype=wp.vec3)):
-    """Per pixel, what depends on the camera alone: the visible surface (``source`` 1: from the
-    rasterised ``keys``; 2: a ray cast through the BVH; 0: no surfaces), its distance and face,
-    and the view ray's segment in the media, (t_in, t_end, t_out) with t_end = min(t_out,
-    surface)."""
+                  keys: wp.array(dtype=wp.int64), parent: wp.array(dtype=int), vis: VisibleSurface):
+    """Per pixel, what depends on the camera alone, into ``vis``: the visible surface
+    (``source`` 1: from the rasterised ``keys`` of the triangles ``vis.points``, ``vis.indices``,
+    each from face ``parent``; 2: a ray cast through the BVH; 0: no surfaces), its distance and
+    face, and the view ray's segment in the media, (t_in, t_end, t_out) with t_end =
+    min(t_out, surface)."""
+    points = vis.points
+    indices = vis.indices
+    t_hit = vis.t_hit
+    face = vis.face
+    segs = vis.segs
     tid = wp.tid() + offset
     o, d = pixel_ray(cam, tid)
     hit = bool(False)
@@ -475,8 +479,9 @@ class LightShafts(Technique):
             t_far = float(np.max(np.linalg.norm(corners - np.asarray(cam.origin, float), axis=1)))
             rasterise_visible(points, indices, view, t_far, keys, self._tiled(), self.device)
         source = 0 if not scene.surfaces else (1 if self.settings["raster"] else 2)
-        dev.launch(view_segments, npix, [view, u.media.struct, u.surfaces, source, keys, points, indices, parent, t_hit,
-                                         face, self.segs], self.device)
+        vis = VisibleSurface()
+        vis.t_hit, vis.face, vis.segs, vis.points, vis.indices = t_hit, face, self.segs, points, indices
+        dev.launch(view_segments, npix, [view, u.media.struct, u.surfaces, source, keys, parent, vis], self.device)
 
     def _surface(self):
         scene, cam, u = self.scene, self.scene.camera, self.uploads

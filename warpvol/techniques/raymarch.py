@@ -64,6 +64,16 @@ class MarchSettings:
     grid_hi: wp.vec3
 
 
+@wp.struct
+class Sky:
+    """The sky as a light: its directions (``upload.sky_lights``; empty: left out), where they
+    start in the baked lattice (after the scene's lights) and its radiance (the background)."""
+
+    directions: wp.array(dtype=Light)
+    first: int
+    radiance: wp.vec3
+
+
 @wp.kernel
 def bake_light_transmittance(offset: int, m: Media, lights: wp.array(dtype=Light), st: MarchSettings,
                              out: wp.array(dtype=wp.vec3)):
@@ -100,50 +110,47 @@ def sky_steps(st: MarchSettings) -> int:
 
 
 @wp.func
-def sky_in_scatter(m: Media, s: Surfaces, sky: wp.array(dtype=Light), first: int, x: wp.vec3, d: wp.vec3,
-                   radiance: wp.vec3, st: MarchSettings, baked: wp.array(dtype=wp.vec3)) -> wp.vec3:
+def sky_in_scatter(m: Media, s: Surfaces, sky: Sky, x: wp.vec3, d: wp.vec3, st: MarchSettings,
+                   baked: wp.array(dtype=wp.vec3)) -> wp.vec3:
     """The sky's light scattered at x toward -d: sigma_s L_sky int p T dw, the integral as
     sum_k sigma_s p_k T_k / sum_k sigma_s p_k over the sky's directions (baked after the
     scene's ``first`` lights), exact where nothing shadows x."""
     num = wp.vec3(0.0)
     den = wp.vec3(0.0)
-    for k in range(sky.shape[0]):
-        wi = -sky[k].direction
+    for k in range(sky.directions.shape[0]):
+        wi = -sky.directions[k].direction
         ph = in_scatter_at(m, x, wp.dot(d, wi))
-        num += wp.cw_mul(ph, light_at(m, s, first + k, x, wi, INF, st, baked, sky_steps(st)))
+        num += wp.cw_mul(ph, light_at(m, s, sky.first + k, x, wi, INF, st, baked, sky_steps(st)))
         den += ph
     mean_t = wp.vec3(num[0] / wp.max(den[0], 1.0e-30), num[1] / wp.max(den[1], 1.0e-30), num[2] / wp.max(den[2], 1.0e-30))
-    return wp.cw_mul(wp.cw_mul(mean_t, scattering_at(m, x)), radiance)
+    return wp.cw_mul(wp.cw_mul(mean_t, scattering_at(m, x)), sky.radiance)
 
 
 @wp.func
-def sky_on_surface(m: Media, s: Surfaces, sky: wp.array(dtype=Light), first: int, p: wp.vec3, n: wp.vec3,
-                   wo: wp.vec3, face: int, radiance: wp.vec3, st: MarchSettings,
-                   baked: wp.array(dtype=wp.vec3)) -> wp.vec3:
+def sky_on_surface(m: Media, s: Surfaces, sky: Sky, p: wp.vec3, n: wp.vec3, wo: wp.vec3, face: int,
+                   st: MarchSettings, baked: wp.array(dtype=wp.vec3)) -> wp.vec3:
     """The sky's light reflected at p: pi f L_sky sum_k cos_k T_k / sum_k cos_k over the sky's
     directions above the surface (exact for an unshadowed diffuse surface)."""
     acc = wp.vec3(0.0)
     csum = float(0.0)
     mat = s.material[face]
-    for k in range(sky.shape[0]):
-        wi = -sky[k].direction
+    for k in range(sky.directions.shape[0]):
+        wi = -sky.directions[k].direction
         c = wp.dot(n, wi)
         if c > 0.0:
             csum += c
-            acc += c * wp.cw_mul(brdf_eval(mat, n, wo, wi), light_at(m, s, first + k, p + RAY_EPS * n, wi, INF, st,
-                                                                     baked, sky_steps(st)))
+            acc += c * wp.cw_mul(brdf_eval(mat, n, wo, wi), light_at(m, s, sky.first + k, p + RAY_EPS * n, wi, INF,
+                                                                     st, baked, sky_steps(st)))
     if csum > 0.0:
-        return wp.cw_mul(acc, radiance) * (PI / csum)
+        return wp.cw_mul(acc, sky.radiance) * (PI / csum)
     return wp.vec3(0.0)
 
 
 @wp.kernel
 def march_single_scattering(offset: int, cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Light),
-                            sky: wp.array(dtype=Light), background: wp.vec3, st: MarchSettings,
-                            baked: wp.array(dtype=wp.vec3), image: wp.array(dtype=wp.vec3)):
-    """Per pixel: the march over the scene's lights and the sky's directions (``sky``, of
-    radiance ``background``; empty: the sky left out), then the surface or the background,
-    attenuated."""
+                            sky: Sky, st: MarchSettings, baked: wp.array(dtype=wp.vec3), image: wp.array(dtype=wp.vec3)):
+    """Per pixel: the march over the scene's lights and the sky's directions (none: the sky's
+    light left out), then the surface or the background, attenuated."""
     tid = wp.tid() + offset
     px = tid % cam.width
     py = tid / cam.width
@@ -169,8 +176,8 @@ def march_single_scattering(offset: int, cam: RasterView, m: Media, s: Surfaces,
                         e = step_mean_irradiance(lights[l], e, dist, o, d, t_mid - 0.5 * dt, t_mid + 0.5 * dt)
                         tl = light_at(m, s, l, x, wi, dist, st, baked, st.shadow_steps)
                         inscatter += wp.cw_mul(wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e), tl)
-                if sky.shape[0] > 0:
-                    inscatter += sky_in_scatter(m, s, sky, lights.shape[0], x, d, background, st, baked)
+                if sky.directions.shape[0] > 0:
+                    inscatter += sky_in_scatter(m, s, sky, x, d, st, baked)
                 f = step_integral_rgb(sig, dt)
                 L += wp.cw_mul(wp.cw_mul(tr, inscatter), f)
                 tr = wp.cw_mul(tr, transmittance_rgb(sig * dt))
@@ -178,11 +185,11 @@ def march_single_scattering(offset: int, cam: RasterView, m: Media, s: Surfaces,
         nf = wp.where(wp.dot(n, d) < 0.0, n, -n)
         p = o + t_surf * d
         Ls = surface_direct(m, s, lights, p, nf, -d, s.material[face], 0, rng, st.shadow_steps)
-        if sky.shape[0] > 0:
-            Ls += sky_on_surface(m, s, sky, lights.shape[0], p, nf, -d, face, background, st, baked)
+        if sky.directions.shape[0] > 0:
+            Ls += sky_on_surface(m, s, sky, p, nf, -d, face, st, baked)
         L += wp.cw_mul(tr, Ls)
     else:
-        L += wp.cw_mul(tr, background)
+        L += wp.cw_mul(tr, sky.radiance)
     image[tid] = L
 
 
@@ -244,11 +251,13 @@ class Raymarch(Technique):
         scene, u = self.scene, self.uploads
         npix = scene.camera.width * scene.camera.height
         self.image = wp.empty(npix, dtype=wp.vec3, device=self.device)
+        sky = Sky()
+        sky.directions = lights_array(self._sky(), self.device)
+        sky.first = len(scene.lights)
+        sky.radiance = wp.vec3(*scene.background)
         dev.launch(march_single_scattering, npix, [camera_view(pinhole(scene.camera)), u.media.struct, u.surfaces,
-                                                   u.lights, lights_array(self._sky(), self.device),
-                                                   wp.vec3(*scene.background),
-                                                   self._march_settings(),
-                                                   self.baked, self.image], self.device)
+                                                   u.lights, sky, self._march_settings(), self.baked, self.image],
+                   self.device)
 
     def output(self):
         return self.image

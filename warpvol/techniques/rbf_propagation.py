@@ -148,11 +148,15 @@ class Volume:
 @wp.struct
 class Volumes:
     """What the march reads: the extinction volume (EV) and the per-light optical depth
-    volumes (OPV, light l's cells from l n^3) over one ``Volume``."""
+    volumes (OPV, light l's cells from l n^3) over one ``Volume``, and the medium's albedo and
+    phase function (the first medium's)."""
 
     ev: wp.array(dtype=wp.vec3)
     opv: wp.array(dtype=wp.vec3)
     v: Volume
+    albedo: wp.vec3
+    phase: Phase
+    phase_table: wp.array(dtype=float)
 
 
 @wp.func
@@ -237,10 +241,13 @@ def axis_offset(light: Light, g: wp.vec3i, v: Volume, axis: int, i: int) -> int:
 
 
 @wp.func
-def update_cell(l: int, i: int, j: int, k: int, a: wp.vec3i, wave: int, ev: wp.array(dtype=wp.vec3), v: Volume,
+def update_cell(l: int, cell: wp.vec3i, a: wp.vec3i, wave: int, ev: wp.array(dtype=wp.vec3), v: Volume,
                 light: Light, rule: int, tau_in: wp.array(dtype=wp.vec3), tau_out: wp.array(dtype=wp.vec3)):
-    """One propagation step of light ``l`` at cell (i, j, k), ``a`` its offset from the light
+    """One propagation step of light ``l`` at ``cell`` (i, j, k), ``a`` its offset from the light
     (``anchor_offset``): equation 6 (rule 0) or its corrected form, read from ``tau_in``."""
+    i = cell[0]
+    j = cell[1]
+    k = cell[2]
     cells = v.n[0] * v.n[1] * v.n[2]
     c = cell_index(v, i, j, k)
     x = cell_centre(v, i, j, k)
@@ -301,7 +308,7 @@ def propagate_optical_depth(offset: int, ev: wp.array(dtype=wp.vec3), v: Volume,
     j = (c / v.n[0]) % v.n[1]
     k = c / (v.n[0] * v.n[1])
     a = anchor_offset(lights[l], light_cell[l], v, i, j, k)
-    update_cell(l, i, j, k, a, 0, ev, v, lights[l], rule, tau_in, tau_out)
+    update_cell(l, wp.vec3i(i, j, k), a, 0, ev, v, lights[l], rule, tau_in, tau_out)
 
 
 @wp.kernel
@@ -345,7 +352,7 @@ def propagate_shell(offset: int, ev: wp.array(dtype=wp.vec3), v: Volume, lights:
     j = wp.where(s == 1, x, wp.where(p == 1, u, w))
     k = wp.where(s == 2, x, wp.where(p == 2, u, w))
     a = anchor_offset(light, g, v, i, j, k)
-    update_cell(l, i, j, k, a, 1, ev, v, light, rule, tau, tau)
+    update_cell(l, wp.vec3i(i, j, k), a, 1, ev, v, light, rule, tau, tau)
 
 
 @wp.kernel
@@ -396,14 +403,15 @@ def surface_optical_depth(opv: wp.array(dtype=wp.vec3), base: int, v: Volume, p:
 
 @wp.kernel
 def march_volumes(offset: int, cam: RasterView, s: Surfaces, lights: wp.array(dtype=Light), vols: Volumes,
-                  albedo: wp.vec3,
-                  phase: Phase, phase_table: wp.array(dtype=float), steps: int, background: wp.vec3,
-                  image: wp.array(dtype=wp.vec3)):
+                  steps: int, background: wp.vec3, image: wp.array(dtype=wp.vec3)):
     tid = wp.tid() + offset
     o, d = pixel_ray(cam, tid)
     ev = vols.ev
     opv = vols.opv
     v = vols.v
+    albedo = vols.albedo
+    phase = vols.phase
+    phase_table = vols.phase_table
     hit, t_surf, n, face = surface_hit(s, o, d, INF)
     a, b = ray_box(o, d, v.lo, v.hi)
     ta = wp.max(a, 0.0)
@@ -557,9 +565,9 @@ class RBFPropagation(Technique):
         phase_table = wp.array(table if len(table) else np.zeros(1, np.float32), dtype=float, device=self.device)
         vols = Volumes()
         vols.ev, vols.opv, vols.v = self.ev, self.opv, self.volume
-        dev.launch(march_volumes, npix, [camera_view(pinhole(cam)), u.surfaces, u.lights, vols, albedo, phase,
-                                         phase_table, self.settings["steps"], wp.vec3(*scene.background),
-                                         self.image], self.device)
+        vols.albedo, vols.phase, vols.phase_table = albedo, phase, phase_table
+        dev.launch(march_volumes, npix, [camera_view(pinhole(cam)), u.surfaces, u.lights, vols,
+                                         self.settings["steps"], wp.vec3(*scene.background), self.image], self.device)
 
     def output(self):
         return self.image

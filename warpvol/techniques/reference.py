@@ -76,6 +76,16 @@ ROULETTE_AFTER = wp.constant(5)
 
 
 @wp.struct
+class Span:
+    """The stretch o + t d, t in [ta, tb), of a path segment inside the media."""
+
+    o: wp.vec3
+    d: wp.vec3
+    ta: float
+    tb: float
+
+
+@wp.struct
 class PathSettings:
     max_events: int
     channel: int  # -1: grey extinction, trace RGB together; else the one channel traced
@@ -119,8 +129,8 @@ def segment_irradiance(light: Light, o: wp.vec3, d: wp.vec3, ta: float, tb: floa
 
 
 @wp.func
-def segment_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), o: wp.vec3, d: wp.vec3,
-                   ta: float, tb: float, t_ff: float, i_ff: int, exact: bool, c: int, rng: wp.uint32) -> wp.vec3:
+def segment_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), span: Span, t_ff: float, i_ff: int,
+                   exact: bool, c: int, rng: wp.uint32) -> wp.vec3:
     """Direct light scattered toward -d from the media on [ta, tb] from one light, chosen in
     proportion to ``segment_irradiance`` and weighted by one over that probability: each light
     costs transmittances through the media, so a scene with 8 lights pays for one per segment,
@@ -134,6 +144,10 @@ def segment_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), o: wp.v
     thin tails). Its pdf is exact when every medium is (``exact``: ``exact_media``); with a tracked grid
     only an estimate of T is known, so a point light's second strategy there is exponential
     sampling of the majorant, whose pdf is exact."""
+    o = span.o
+    d = span.d
+    ta = span.ta
+    tb = span.tb
     L = wp.vec3(0.0)
     mu = m.majorant[c]
     # one pass of weighted reservoir sampling: light l replaces the choice with probability
@@ -265,8 +279,12 @@ def trace_path(cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Li
             # and a point light: half the variance)
             if exact:
                 segment = wp.randi(rng)
-            L += wp.cw_mul(beta, segment_direct(m, s, lights, o, d, ta, tb, t, i, exact, c,
-                                                wp.rand_init(segment, STREAM)))
+            span = Span()
+            span.o = o
+            span.d = d
+            span.ta = ta
+            span.tb = tb
+            L += wp.cw_mul(beta, segment_direct(m, s, lights, span, t, i, exact, c, wp.rand_init(segment, STREAM)))
         if collided:
             events += 1
             x = o + t * d
