@@ -250,13 +250,6 @@ def shade_texels(offset: int, B: Blocks, imp: Impostors, cl: CloudLight, pf: Pha
                  inst: wp.array(dtype=int), first: wp.array(dtype=int), radiance: wp.array(dtype=wp.vec3)):
     """Thread (textured instance j, texel k): what the texel's segment scatters toward the
     eye, per unit opacity: albedo (sum_l p E_l T_l + the sky's) at its mid-depth point."""
-    m = cl.m
-    P = cl.P
-    lights = cl.lights
-    m_sky = cl.m_sky
-    sky = cl.sky
-    ph = pf.phase
-    table = pf.table
     tid = wp.tid() + offset
     T2 = B.res * B.res
     j = tid / T2
@@ -269,9 +262,9 @@ def shade_texels(offset: int, B: Blocks, imp: Impostors, cl: CloudLight, pf: Pha
         u, v = texel_uv(k, B.res, B.reach[i])
         x = B.centre[i] + u * imp.right + v * imp.up + imp.mid[texel] * imp.fwd
         w = wp.normalize(eye - x)
-        L = in_scatter(m, P, lights, ph, table, x, w, widen, 0)
-        if sky.shape[0] > 0:
-            L += in_scatter(m_sky, P, sky, ph, table, x, w, 0.0, 1)
+        L = in_scatter(cl.m, cl.P, cl.lights, pf.phase, pf.table, x, w, widen, 0)
+        if cl.sky.shape[0] > 0:
+            L += in_scatter(cl.m_sky, cl.P, cl.sky, pf.phase, pf.table, x, w, 0.0, 1)
         L = wp.cw_mul(B.albedo[t], L)
     radiance[first[j] + k] = L
 
@@ -282,15 +275,13 @@ def shade_particles(offset: int, B: Blocks, direct: wp.array(dtype=wp.vec3), tra
                     out: wp.array(dtype=wp.vec3)):
     """One-particle instance i: adds albedo sum_l p(travel_l . w_eye) E_l T_l (sphere means);
     ``sky`` = 1: the lights are a sky's directions, the sum divided by sum_l p."""
-    ph = pf.phase
-    table = pf.table
     i = wp.tid() + offset
     p = particle[i]
     w = wp.normalize(eye - B.centre[i])
     acc = wp.vec3(0.0)
     psum = float(0.0)
     for l in range(L):
-        ph_l = phase_toward(ph, table, travel[p * L + l], w)
+        ph_l = phase_toward(pf.phase, pf.table, travel[p * L + l], w)
         psum += ph_l
         acc += ph_l * direct[p * L + l]
     if sky != 0 and psum > 0.0:
@@ -305,11 +296,6 @@ def shade_surfaces(offset: int, cam: RasterView, s: Surfaces, cl: CloudLight, de
     light it reflects, through the cloud (the light pass) and past the other surfaces; the
     sky's as pi f L_sky sum_k cos_k T_k V_k / sum_k cos_k over its directions (exact for an
     unshadowed diffuse surface)."""
-    m = cl.m
-    P = cl.P
-    lights = cl.lights
-    m_sky = cl.m_sky
-    sky = cl.sky
     tid = wp.tid() + offset
     o, d = pixel_ray(cam, tid)
     hit, t, n, face = surface_hit(s, o, d, INF)
@@ -319,21 +305,21 @@ def shade_surfaces(offset: int, cam: RasterView, s: Surfaces, cl: CloudLight, de
             n = -n
         x = o + t * d
         mat = s.material[face]
-        for l in range(lights.shape[0]):
-            wi, dist, e = light_incident(lights[l], x)
+        for l in range(cl.lights.shape[0]):
+            wi, dist, e = light_incident(cl.lights[l], x)
             cos_l = wp.dot(n, wi)
             if cos_l > 0.0 and not occluded(s, x + RAY_EPS * n, wi, dist):
-                tr = transmittance_rgb(optical_depth_to_light(m, P, -1, l, lights[l], x))
+                tr = transmittance_rgb(optical_depth_to_light(cl.m, cl.P, -1, l, cl.lights[l], x))
                 L += cos_l * wp.cw_mul(wp.cw_mul(brdf_eval(mat, n, -d, wi), e), tr)
         acc = wp.vec3(0.0)
         csum = float(0.0)
-        for l in range(sky.shape[0]):
-            wi, dist, e = light_incident(sky[l], x)
+        for l in range(cl.sky.shape[0]):
+            wi, dist, e = light_incident(cl.sky[l], x)
             cos_l = wp.dot(n, wi)
             if cos_l > 0.0:
                 csum += cos_l
                 if not occluded(s, x + RAY_EPS * n, wi, dist):
-                    tr = transmittance_rgb(optical_depth_to_light(m_sky, P, -1, l, sky[l], x))
+                    tr = transmittance_rgb(optical_depth_to_light(cl.m_sky, cl.P, -1, l, cl.sky[l], x))
                     acc += cos_l * wp.cw_mul(wp.cw_mul(brdf_eval(mat, n, -d, wi), e), tr)
         if csum > 0.0:
             L += acc * (PI / csum)
@@ -359,15 +345,9 @@ def gather(offset: int, cam: RasterView, B: Blocks, imp: Impostors, tl: TileList
            shaded: Shaded, surf: SurfaceLayer, background: wp.vec3, image: wp.array(dtype=wp.vec3)):
     """Front to back over the pixel's tile: each instance adds T alpha L and scales T by
     1 - alpha, its opacity cut where the surface lies inside it."""
-    texel_radiance = shaded.texels
-    first = shaded.first
-    particle_radiance = shaded.particles
-    surf_depth = surf.depth
-    surf_colour = surf.colour
-    object_depth = surf.object_depth
     tid = wp.tid() + offset
     o, d = pixel_ray(cam, tid)
-    t_s = surf_depth[tid]
+    t_s = surf.depth[tid]
     tile = pixel_tile(cam, tid, tl.tiles_x)
     L = wp.vec3(0.0)
     Tr = wp.vec3(1.0)
@@ -381,14 +361,14 @@ def gather(offset: int, cam: RasterView, B: Blocks, imp: Impostors, tl: TileList
         if B.texel0[t] < 0:  # one particle: its chord along the ray, cut at the surface
             a, b = ray_sphere(o, d, c, B.radius[t])
             a = wp.max(a, 0.0)
-            if object_depth == 0:
+            if surf.object_depth == 0:
                 if wp.dot(c - o, d) > t_s:
                     b = a
             else:
                 b = wp.min(b, t_s)
             if b > a:
                 tau = B.sigma_t[t] * (b - a)
-                Lq = particle_radiance[i]
+                Lq = shaded.particles[i]
         else:
             t_plane = wp.dot(c - o, imp.fwd) / cos_f
             if t_plane > 0.0:
@@ -405,14 +385,14 @@ def gather(offset: int, cam: RasterView, B: Blocks, imp: Impostors, tl: TileList
                                    wp.log(wp.max(1.0 - alpha[2], 1.0e-30)))
                     t0 = t_plane + imp.front[base + k] / cos_f
                     t1 = t_plane + imp.back[base + k] / cos_f
-                    if object_depth == 0:
+                    if surf.object_depth == 0:
                         if t_plane > t_s:
                             tau = wp.vec3(0.0)
                     elif t_s <= t0:
                         tau = wp.vec3(0.0)
                     elif t_s < t1:
                         tau = tau * ((t_s - t0) / (t1 - t0))
-                    Lq = bilinear3(texel_radiance, first[i], T, fx, fy)
+                    Lq = bilinear3(shaded.texels, shaded.first[i], T, fx, fy)
         if tau[0] > 0.0 or tau[1] > 0.0 or tau[2] > 0.0:
             tr = transmittance_rgb(tau)
             L += wp.cw_mul(wp.cw_mul(Tr, wp.vec3(1.0) - tr), Lq)
@@ -421,7 +401,7 @@ def gather(offset: int, cam: RasterView, B: Blocks, imp: Impostors, tl: TileList
                 break
     behind = background
     if t_s < INF:
-        behind = surf_colour[tid]
+        behind = surf.colour[tid]
     image[tid] = L + wp.cw_mul(Tr, behind)
 
 

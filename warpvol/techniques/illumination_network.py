@@ -346,8 +346,6 @@ def outgoing_radiance(offset: int, P: Particles, eye: wp.vec3, dirs: wp.array(dt
                       out: wp.array(dtype=wp.vec3)):
     """a (sum_d I[p, d] p(w_d . w_eye) 4 pi / D + sum_l p(w_l . w_eye) E_l T_l): the source
     radiance of particle p toward the eye; ``normalise``: the D weights sum to 1 instead."""
-    ph = pf.phase
-    table = pf.table
     p = wp.tid() + offset
     D = dirs.shape[0]
     to_eye = eye - P.centres[p]
@@ -357,7 +355,7 @@ def outgoing_radiance(offset: int, P: Particles, eye: wp.vec3, dirs: wp.array(dt
     s = wp.vec3(0.0)
     total = float(0.0)
     for d in range(D):
-        f = phase_eval(ph, table, wp.dot(dirs[d], w))
+        f = phase_eval(pf.phase, pf.table, wp.dot(dirs[d], w))
         total += f
         s += f * wp.vec3(float(I[3 * p, d]), float(I[3 * p + 1, d]), float(I[3 * p + 2, d]))
     norm = 4.0 * PI / float(D)
@@ -365,7 +363,7 @@ def outgoing_radiance(offset: int, P: Particles, eye: wp.vec3, dirs: wp.array(dt
         norm = 1.0 / total
     s = s * (scale * norm)
     for l in range(dl.count):
-        s += phase_toward(ph, table, dl.travel[p * dl.count + l], w) * dl.direct[p * dl.count + l]
+        s += phase_toward(pf.phase, pf.table, dl.travel[p * dl.count + l], w) * dl.direct[p * dl.count + l]
     out[p] = wp.cw_mul(P.albedo[p], s)
 
 

@@ -152,11 +152,6 @@ def view_segments(offset: int, cam: RasterView, m: Media, s: Surfaces, source: i
     each from face ``parent``; 2: a ray cast through the BVH; 0: no surfaces), its distance and
     face, and the view ray's segment in the media, (t_in, t_end, t_out) with t_end =
     min(t_out, surface)."""
-    points = vis.points
-    indices = vis.indices
-    t_hit = vis.t_hit
-    face = vis.face
-    segs = vis.segs
     tid = wp.tid() + offset
     o, d = pixel_ray(cam, tid)
     hit = bool(False)
@@ -164,16 +159,16 @@ def view_segments(offset: int, cam: RasterView, m: Media, s: Surfaces, source: i
     n = wp.vec3(0.0, 1.0, 0.0)
     f = int(-1)
     if source == 1:
-        hit, t, n, f = key_hit(keys[tid], points, indices, o, d)
+        hit, t, n, f = key_hit(keys[tid], vis.points, vis.indices, o, d)
         if hit:
             f = parent[f]  # the face the rasterised piece came from
     elif source == 2:
         hit, t, n, f = surface_hit(s, o, d, INF)
     if source != 0:
-        t_hit[tid] = t
-        face[tid] = f
+        vis.t_hit[tid] = t
+        vis.face[tid] = f
     a, b = ray_box(o, d, m.all_min, m.all_max)
-    segs[tid] = wp.vec3(wp.max(a, 0.0), wp.min(b, t), b)
+    vis.segs[tid] = wp.vec3(wp.max(a, 0.0), wp.min(b, t), b)
 
 
 @wp.kernel
