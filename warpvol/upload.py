@@ -145,7 +145,7 @@ def check_particle_scene(technique: str, scene: Scene) -> None:
         raise SettingsError(f"{technique}: the particle media must share one phase function (found {len(phases)})")
 
 
-def particle_cloud(scene: Scene, device, **options) -> ParticleBuffers:
+def particle_buffers(scene: Scene, device, **options) -> ParticleBuffers:
     """All of the scene's particle media as one cloud on the device (per particle: centre,
     radius, sigma_t, albedo; media in order); ``options`` go to ``ParticleBuffers``."""
     pos = np.concatenate([np.asarray(m.positions, np.float32).reshape(-1, 3) for m in scene.media])
@@ -247,6 +247,11 @@ class MediaBuffers:
     """Owns the device arrays (and hash grids) behind a ``Media`` struct."""
 
     def __init__(self, scene: Scene, device):
+        """Every medium of ``scene`` on ``device``: per medium its kind, box and bounding ball,
+        extinction, albedo and phase (its table in one shared array), plus what its kind needs
+        (a grid's dense or NanoVDB values and its majorant grid; an RBF medium's centres with
+        their radii and amplitudes; a particle cloud's spheres and hash grid), and the ``Media``
+        struct the kernels read."""
         kinds, bmin, bmax, center, radius, sigma, albedo, phases, dims, offset, reach = ([] for _ in range(11))
         majorants, grid_chunks, point_chunks, tables = [], [], [], []
         radius_chunks, amplitude_chunks = [], []  # per RBF Gaussian

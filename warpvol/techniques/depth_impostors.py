@@ -40,7 +40,7 @@ one block of b particles, so a frame renders the block once (b) and then its ins
   albedo x sum over lights of p(theta) E T_light, T_light read from the light pass at the
   texel's shading depth (the block's own particles toward the light included: its
   self-shadowing), plus the sky's albedo L_sky sum_k p_k T_k / sum_k p_k. ``widen`` > 0: the
-  paper's forward-scattering widening (``light_transmittance``). A one-particle instance: its irradiance averaged over the sphere at
+  paper's forward-scattering widening (``particle_light_transmittance``). A one-particle instance: its irradiance averaged over the sphere at
   ``light_samples`` points (``LightPass.direct``).
 * ``surfaces`` (reads the surfaces, camera): per pixel the nearest surface (its depth: the
   paper's depth buffer) and its colour lit through the light pass (the cloud's shadow) and
@@ -74,7 +74,7 @@ from ..physics.phase import Phase, PhaseFn, phase_eval, phase_fn, phase_struct, 
 from ..physics.transmittance import transmittance_rgb
 from ..pipeline import Bias, Quality, Setting, Stage, Technique
 from ..scene.procedural import split_blocks
-from ..upload import SceneUploads, check_particle_scene, particle_cloud, pinhole, sky_lights
+from ..upload import SceneUploads, check_particle_scene, particle_buffers, pinhole, sky_lights
 
 NAME = "depth_impostors"
 SETTINGS = {
@@ -169,8 +169,8 @@ def make_impostors(offset: int, B: Blocks, reach: wp.array(dtype=float), imp: Im
 
 
 @wp.func
-def light_transmittance(m: LightMap, P: Particles, l: int, light: Light, x: wp.vec3, wi: wp.vec3, widen: float,
-                        ph: Phase, table: wp.array(dtype=float)) -> wp.vec3:
+def particle_light_transmittance(m: LightMap, P: Particles, l: int, light: Light, x: wp.vec3, wi: wp.vec3,
+                                 widen: float, ph: Phase, table: wp.array(dtype=float)) -> wp.vec3:
     """Transmittance from light l to x; ``widen`` > 0: the paper's forward-scattering widening
     (section 2.2: "the radiance of those pixels of both enclosing slices are taken into
     account, for which the phase function is not negligible"), read as the light at x plus
@@ -239,7 +239,7 @@ def in_scatter(m: LightMap, P: Particles, lights: wp.array(dtype=Light), ph: Pha
         p = phase_eval(ph, table, wp.dot(-wi, w_out))
         psum += p
         if e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0:
-            L += p * wp.cw_mul(e, light_transmittance(m, P, l, lights[l], x, wi, widen, ph, table))
+            L += p * wp.cw_mul(e, particle_light_transmittance(m, P, l, lights[l], x, wi, widen, ph, table))
     if sky != 0 and psum > 0.0:
         L = L / psum
     return L
@@ -514,7 +514,7 @@ class DepthImpostors(Technique):
                 tpl_of.append(np.full(len(p), t, np.int32))
                 particle_of.append(np.arange(base, base + len(p), dtype=np.int32))
             base += len(p)
-        self._cloud = particle_cloud(self.scene, device, hash_grid=False, bvh=self.settings["light_pass"] == 0)
+        self._cloud = particle_buffers(self.scene, device, hash_grid=False, bvh=self.settings["light_pass"] == 0)
         offsets_np = np.concatenate(offsets).astype(np.float64)
         centres = np.concatenate(centres)
         tpl_of = np.concatenate(tpl_of)

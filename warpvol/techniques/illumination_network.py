@@ -97,7 +97,7 @@ from ..physics.sampling import orthonormal_basis
 from ..physics.sphere import fibonacci_directions
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Bias, Quality, Setting, SettingsError, Stage, Technique
-from ..upload import SceneUploads, check_particle_scene, particle_cloud, pinhole
+from ..upload import SceneUploads, check_particle_scene, particle_buffers, pinhole
 
 NAME = "illumination_network"
 ONE_SHOT_CAP = 2000  # iterations a one-shot render may take to converge
@@ -544,7 +544,7 @@ class IlluminationNetwork(Technique):
         """Particles to the device, per-particle extinction, phase matrix, and V with alpha:
         every direction, or with ``refresh = k`` and an unchanged layout the next k."""
         s, device = self.settings, self.device
-        self._particles = cloud = particle_cloud(self.scene, device)
+        self._particles = cloud = particle_buffers(self.scene, device)
         pos, radius, sigma = cloud.centres, cloud.radius, cloud.sigma_t
         n = len(pos)
         D = s["directions"]

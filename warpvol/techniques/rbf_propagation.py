@@ -99,7 +99,7 @@ def volume_bounds(scene) -> tuple[np.ndarray, np.ndarray]:
       to the media alone: surfaces reach the OPV through ``surface_optical_depth``, exactly
       wherever they lie, so spanning them buys nothing and a floor plane 8 wide under a
       medium 2 wide would leave the medium a quarter of the cells per axis (and a plane
-      alone gave the volume zero thickness: NaN images, issue 12).
+      alone gave the volume zero thickness: NaN images).
     * Except when the surfaces' box is a room around the media (the paper's Cornell box):
       it holds every RBF centre and every other medium whole, and is no more than ``ROOM``
       times the media's bounds on any axis. Then the room is the volume, as in the paper:

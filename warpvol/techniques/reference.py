@@ -244,6 +244,13 @@ def sky_after_last(m: Media, s: Surfaces, o: wp.vec3, d: wp.vec3, background: wp
 @wp.func
 def trace_path(cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Light), background: wp.vec3,
                st: PathSettings, px: int, py: int, rng: wp.uint32) -> wp.vec3:
+    """One camera path through pixel (px, py) (its centre, or a uniform point of it with
+    ``pixel_area``): each segment's next collision by free flight through the media in front of
+    the nearest surface, the direct light scattered on that segment (``segment_direct``), then
+    a scattering event (phase sampled, throughput times albedo) or the surface's direct light and
+    a BRDF bounce, until ``max_events`` events or the path leaves; the background counts where it
+    escapes. Returns the path's radiance estimate for the traced channel (all three with grey
+    extinction)."""
     jx = float(0.5)
     jy = float(0.5)
     if st.pixel_area != 0:
