@@ -288,3 +288,61 @@ def test_the_block_light_pass_keeps_the_optical_volume_and_the_light(device):
     err = {k: float(np.sqrt(np.sum((light[k] - light["exact"]) ** 2) / np.sum(light["exact"] ** 2)))
            for k in ("particles", "blocks")}
     assert err["blocks"] <= 1.5 * err["particles"], err
+
+
+def test_impostor_resolution_follows_the_block_size(device):
+    """impostor_res = 0: T = 3 R / r (a texel two thirds of a particle radius), and no finer
+    than two pixels of the largest projected block, D / 2. Invariances: the scene scaled by 2
+    (positions, radii and the camera, sigma_t halved so every optical depth stays) keeps T and
+    the image (float rounding); the camera 4x as far makes the pixel bound decide, T following
+    D / 2 of the numpy projection; a fixed impostor_res is kept whatever the view."""
+    import dataclasses
+
+    def scene_at(scale, distance):
+        base = wv.load_scene(block_scene(blocks=4, per_block=20, width=160, radius=0.06, sigma_t=8.0))
+        m = base.media[0]
+        m = dataclasses.replace(m, positions=np.asarray(m.positions) * scale, radius=m.radius * scale,
+                                sigma_t=tuple(np.asarray(m.sigma_t) / scale))
+        cam = dataclasses.replace(base.camera, origin=(0.0, 0.0, 4.0 * scale * distance))
+        return dataclasses.replace(base, media=[m], camera=cam, lights=list(base.lights))
+
+    frames = {}
+    for key, scale, distance in (("near", 1.0, 1.0), ("scaled", 2.0, 1.0), ("far", 1.0, 4.0)):
+        r = wv.Renderer(scene_at(scale, distance), "depth_impostors", device=device)
+        frames[key] = (r.render().image, r.diagnostics(), r.technique)
+    d = frames["near"][1]
+    m = frames["near"][2].scene.media[0]
+    pos = np.asarray(m.positions, np.float64).reshape(4, 20, 3)
+    reach = max(np.sqrt(((b - b.mean(0)) ** 2).sum(1)).max() for b in pos) + m.radius
+    assert d["impostor_res"] == int(np.ceil(3.0 * reach / m.radius)), (d["impostor_res"], reach / m.radius)
+    assert frames["scaled"][1]["impostor_res"] == d["impostor_res"]
+    near, scaled = frames["near"][0], frames["scaled"][0]
+    assert np.max(np.abs(scaled - near)) < 1e-4 * np.max(near)
+    far = frames["far"][2]
+    cam = far.scene.camera
+    dist = np.linalg.norm(pos.mean(1) - np.asarray(cam.origin), axis=1)
+    focal = 0.5 * cam.height / np.tan(np.radians(cam.fov_y) / 2)
+    D = np.max(2.0 * reach / (dist - reach)) * focal
+    assert frames["far"][1]["impostor_res"] == max(2, int(np.ceil(0.5 * D))) < d["impostor_res"], D
+    r = wv.Renderer(scene_at(1.0, 4.0), "depth_impostors", device=device, impostor_res=12)
+    r.render()
+    assert r.diagnostics()["impostor_res"] == 12
+
+
+def test_media_order_does_not_change_the_image(device):
+    """A cloud of single particles and a block-built cloud in one scene, listed either way
+    round: every instance's texels land where its gather reads them (the texel radiance is
+    laid out per textured instance, whichever media come first), so the two images agree to
+    float rounding."""
+    blocks = wv.load_scene(block_scene(blocks=3, per_block=10, width=32)).media[0]
+    loose = dict(block_scene(positions=np.random.default_rng(4).uniform(-0.6, 0.6, (12, 3)), width=32)["media"][0])
+    scene = block_scene(blocks=3, per_block=10, width=32)
+    block_medium = dict(scene["media"][0], positions=np.asarray(blocks.positions).tolist())
+    block_medium.pop("generator")
+    block_medium["block_size"] = 10
+    images = []
+    for media in ([loose, block_medium], [block_medium, loose]):
+        r = wv.Renderer({**scene, "media": media}, "depth_impostors", device=device)
+        images.append(r.render().image)
+        assert r.diagnostics()["instances"] == 3 + 12
+    assert np.max(np.abs(images[0] - images[1])) < 1e-5 * np.max(images[0])

@@ -90,6 +90,21 @@ def threads() -> int:
     return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
 
 
+PER_THREAD_CPU = 16
+
+
+def per_thread(device: str) -> int:
+    """Items (pixels, texels) one thread of a light per-item kernel takes in a row: 16 on the
+    CPU, where Warp copies a kernel's arguments for every thread (a few kB for kernels given
+    several array structs: tens of ns, as much as a light item's own work), 1 on CUDA."""
+    return PER_THREAD_CPU if str(device) == "cpu" else 1
+
+
+def groups(n: int, per: int) -> int:
+    """Threads for ``n`` items taken ``per`` to a thread."""
+    return -(-n // per)
+
+
 MIN_SPLIT = 32768  # threads below which a CPU launch is not split (handing out chunks costs ~1 ms)
 
 

@@ -107,6 +107,7 @@ def impostor_frame(params: dict, device: str, quick: bool) -> dict:
     row = _moving_frames(r, scene, repeats) if paper else time_frames(r, repeats, invalidate=("medium", "lights"))
     d = r.diagnostics()
     row.update(instances=d["instances"], per_block=per_block, light_texels=d["light_texels"],
+               impostor_res=d["impostor_res"],
                light_template_texels=d["light_template_texels"],
                scene=f"{len(scene.media[0].positions)} particles, {d['instances']} instances of {per_block}, "
                      f"{scene.camera.width}x{scene.camera.height}, "
@@ -124,9 +125,9 @@ def impostor_accuracy_grid(quick: bool) -> list[dict]:
     if quick:
         return [{"light": "slices", "terms": 4, "res": 8}, {"light": "exact", "terms": 0, "res": 8}]
     return ([{"light": "slices", "terms": s, "res": 16} for s in (1, 2, 4, 8, 16, 32)]
-            + [{"light": "slices", "terms": 4, "res": r} for r in (4, 8, 32, 64)]
+            + [{"light": "slices", "terms": 4, "res": r} for r in (0, 4, 8, 32, 64)]
             + [{"light": "fourier", "terms": k, "res": 16} for k in (2, 4, 8, 16)]
-            + [{"light": "exact", "terms": 0, "res": r} for r in (16, 64)]
+            + [{"light": "exact", "terms": 0, "res": r} for r in (0, 16, 64)]
             + [{"light": "slices", "terms": 4, "res": 16, "sky": k} for k in (0, 1, 4, 16, 64)]
             + [{"light": "slices", "terms": 4, "res": 16, "widen": w} for w in (0.5, 1.0, 2.0, 4.0)])
 
@@ -159,6 +160,7 @@ def impostor_accuracy(params: dict, device: str, quick: bool) -> dict:
     row["rel_rmse_multiple"] = wv.relative_rmse(image, ms)
     row["mean_ratio"] = float(image.mean() / ref.mean())
     row["single_of_multiple"] = float(ref.mean() / ms.mean())
+    row["impostor_res"] = r.diagnostics()["impostor_res"]
     row["scene"] = f"{n} particles in {n // b} blocks of {b}, {w}x{w}, one sun"
     return row
 

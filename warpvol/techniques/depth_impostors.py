@@ -30,7 +30,9 @@ one block of b particles, so a frame renders the block once (b) and then its ins
 * ``templates``: whether the blocks' templates changed; when an animation only moves the
   instances, the impostors stay cached.
 * ``impostors`` (reads the camera): each template block's depth impostor for the camera
-  direction: T x T texels (``impostor_res``) over the block's bounding disc, per texel the
+  direction: T x T texels over the block's bounding disc (``impostor_res``; 0: T = 3 R / r,
+  a texel two thirds of a particle radius r across the block's radius R, and no finer than
+  two pixels of the largest projected block, D / 2; ``impostor_detail`` scales both), per texel the
   total opacity 1 - prod(1 - alpha_j) = 1 - exp(-sum sigma_t chord_j) (RGB; each sphere's
   chord analytic), the front and back depths (min entry, max exit, from the block's
   centre), and the depth it is shaded at (the chords' centres weighted by what each sends
@@ -77,8 +79,13 @@ from ..scene.procedural import split_blocks
 from ..upload import SceneUploads, check_particle_scene, particle_buffers, pinhole, sky_lights
 
 NAME = "depth_impostors"
+RES_MIN, RES_MAX = 2, 128  # impostor texels a side where impostor_res = 0
 SETTINGS = {
-    "impostor_res": Setting(16, 1, 512, "texels across a block's depth impostor (T x T)"),
+    "impostor_res": Setting(0, 0, 512, "texels across a block's depth impostor (T x T); 0: from the block's size "
+                                       "(``impostor_detail``)"),
+    "impostor_detail": Setting(1.0, 0.125, 16.0, "with impostor_res = 0, T = this x min(3 R / r, D / 2): a texel two "
+                                                 "thirds of a particle radius r across (R the block's radius) and no "
+                                                 "finer than two pixels of its largest projected diameter D"),
     "cluster": Setting(1, 1, 100000, "a cloud not built of blocks is grouped into blocks of this many particles "
                                      "(neighbours in Morton order); 1: every particle on its own"),
     "slices": Setting(4, 1, 1024, "light-pass depth slices S (the paper: 4, in one RGBA texture)"),
@@ -107,6 +114,7 @@ class Impostors:
     front: wp.array(dtype=float)
     back: wp.array(dtype=float)
     mid: wp.array(dtype=float)  # the depth a texel is shaded at
+    res: int  # texels a side for this view, T (at most Blocks.res, the layout's)
     fwd: wp.vec3  # the direction they were made for, and its frame
     right: wp.vec3
     up: wp.vec3
@@ -121,18 +129,20 @@ def texel_uv(k: int, T: int, R: float):
 
 
 @wp.kernel
-def make_impostors(offset: int, B: Blocks, reach: wp.array(dtype=float), imp: Impostors, owner: wp.array(dtype=int)):
-    """Thread per texel of a template's impostor: the total opacity of the block's spheres
+def make_impostors(offset: int, B: Blocks, reach: wp.array(dtype=float), imp: Impostors,
+                   textured: wp.array(dtype=int)):
+    """Thread per (textured template, texel of its T x T impostor): the total opacity of the block's spheres
     along the texel's ray (direction imp.fwd), the nearest entry and farthest exit, and the
     depth the texel is shaded at: the chords' own emission-weighted depths (the mean depth
     of a first collision inside each), averaged with weights what each chord sends toward
     the viewer, e^(-tau in front of it) (1 - e^(-its own tau)): the visible part of a thick
     texel lies at its front, not at its middle."""
-    tid = wp.tid() + offset
-    t = owner[tid]
-    k = tid - B.texel0[t]
+    T2 = imp.res * imp.res
+    t = textured[(wp.tid() + offset) / T2]
+    k = (wp.tid() + offset) % T2
+    tid = B.texel0[t] + k
     R = reach[t]
-    u, v = texel_uv(k, B.res, R)
+    u, v = texel_uv(k, imp.res, R)
     o = u * imp.right + v * imp.up - R * imp.fwd
     r = B.radius[t]
     sig = (B.sigma_t[t][0] + B.sigma_t[t][1] + B.sigma_t[t][2]) / 3.0
@@ -247,11 +257,11 @@ def in_scatter(m: LightMap, P: Particles, lights: wp.array(dtype=Light), ph: Pha
 
 @wp.kernel
 def shade_texels(offset: int, B: Blocks, imp: Impostors, cl: CloudLight, pf: PhaseFn, eye: wp.vec3, widen: float,
-                 inst: wp.array(dtype=int), first: wp.array(dtype=int), radiance: wp.array(dtype=wp.vec3)):
+                 inst: wp.array(dtype=int), radiance: wp.array(dtype=wp.vec3)):
     """Thread (textured instance j, texel k): what the texel's segment scatters toward the
     eye, per unit opacity: albedo (sum_l p E_l T_l + the sky's) at its mid-depth point."""
     tid = wp.tid() + offset
-    T2 = B.res * B.res
+    T2 = imp.res * imp.res
     j = tid / T2
     k = tid % T2
     i = inst[j]
@@ -259,14 +269,14 @@ def shade_texels(offset: int, B: Blocks, imp: Impostors, cl: CloudLight, pf: Pha
     texel = B.texel0[t] + k
     L = wp.vec3(0.0)
     if imp.alpha[texel][0] > 0.0 or imp.alpha[texel][1] > 0.0 or imp.alpha[texel][2] > 0.0:
-        u, v = texel_uv(k, B.res, B.reach[i])
+        u, v = texel_uv(k, imp.res, B.reach[i])
         x = B.centre[i] + u * imp.right + v * imp.up + imp.mid[texel] * imp.fwd
         w = wp.normalize(eye - x)
         L = in_scatter(cl.m, cl.P, cl.lights, pf.phase, pf.table, x, w, widen, 0)
         if cl.sky.shape[0] > 0:
             L += in_scatter(cl.m_sky, cl.P, cl.sky, pf.phase, pf.table, x, w, 0.0, 1)
         L = wp.cw_mul(B.albedo[t], L)
-    radiance[first[j] + k] = L
+    radiance[j * B.res * B.res + k] = L  # the layout's T^2 per instance, as Shaded.first
 
 
 @wp.kernel
@@ -341,68 +351,73 @@ def bilinear3(a: wp.array(dtype=wp.vec3), base: int, T: int, fx: float, fy: floa
 
 
 @wp.kernel
-def gather(offset: int, cam: RasterView, B: Blocks, imp: Impostors, tl: TileLists,
+def gather(offset: int, per: int, cam: RasterView, B: Blocks, imp: Impostors, tl: TileLists,
            shaded: Shaded, surf: SurfaceLayer, background: wp.vec3, image: wp.array(dtype=wp.vec3)):
     """Front to back over the pixel's tile: each instance adds T alpha L and scales T by
-    1 - alpha, its opacity cut where the surface lies inside it."""
-    tid = wp.tid() + offset
-    o, d = pixel_ray(cam, tid)
-    t_s = surf.depth[tid]
-    tile = pixel_tile(cam, tid, tl.tiles_x)
-    L = wp.vec3(0.0)
-    Tr = wp.vec3(1.0)
-    cos_f = wp.max(wp.dot(d, imp.fwd), 1.0e-6)
-    for q in range(tl.first[tile], tl.last[tile]):
-        i = tl.values[q]
-        t = B.tpl[i]
-        c = B.centre[i]
-        tau = wp.vec3(0.0)
-        Lq = wp.vec3(0.0)
-        if B.texel0[t] < 0:  # one particle: its chord along the ray, cut at the surface
-            a, b = ray_sphere(o, d, c, B.radius[t])
-            a = wp.max(a, 0.0)
-            if surf.object_depth == 0:
-                if wp.dot(c - o, d) > t_s:
-                    b = a
+    1 - alpha, its opacity cut where the surface lies inside it. A textured instance's
+    transmittance is 1 - alpha straight from its impostor (no log or exp), except where the
+    surface cuts it: there (1 - alpha)^f, f the fraction of its depth interval in front.
+    A thread does ``per`` pixels in a row (``device.per_thread``)."""
+    first = (wp.tid() + offset) * per
+    for tid in range(first, wp.min(first + per, cam.width * cam.height)):
+        o, d = pixel_ray(cam, tid)
+        t_s = surf.depth[tid]
+        tile = pixel_tile(cam, tid, tl.tiles_x)
+        L = wp.vec3(0.0)
+        Tr = wp.vec3(1.0)
+        one = wp.vec3(1.0)
+        cos_f = wp.max(wp.dot(d, imp.fwd), 1.0e-6)
+        for q in range(tl.first[tile], tl.last[tile]):
+            i = tl.values[q]
+            t = B.tpl[i]
+            c = B.centre[i]
+            tr = one
+            Lq = wp.vec3(0.0)
+            if B.texel0[t] < 0:  # one particle: its chord along the ray, cut at the surface
+                a, b = ray_sphere(o, d, c, B.radius[t])
+                a = wp.max(a, 0.0)
+                if surf.object_depth == 0:
+                    if wp.dot(c - o, d) > t_s:
+                        b = a
+                else:
+                    b = wp.min(b, t_s)
+                if b > a:
+                    tr = transmittance_rgb(B.sigma_t[t] * (b - a))
+                    Lq = shaded.particles[i]
             else:
-                b = wp.min(b, t_s)
-            if b > a:
-                tau = B.sigma_t[t] * (b - a)
-                Lq = shaded.particles[i]
-        else:
-            t_plane = wp.dot(c - o, imp.fwd) / cos_f
-            if t_plane > 0.0:
-                x = o + t_plane * d - c
-                T = B.res
-                R = B.reach[i]
-                fx = (wp.dot(x, imp.right) / R + 1.0) * 0.5 * float(T) - 0.5
-                fy = (wp.dot(x, imp.up) / R + 1.0) * 0.5 * float(T) - 0.5
-                if fx > -1.0 and fx < float(T) and fy > -1.0 and fy < float(T):
-                    base = B.texel0[t]
-                    alpha = bilinear3(imp.alpha, base, T, fx, fy)
-                    k = wp.clamp(int(fy + 0.5), 0, T - 1) * T + wp.clamp(int(fx + 0.5), 0, T - 1)
-                    tau = -wp.vec3(wp.log(wp.max(1.0 - alpha[0], 1.0e-30)), wp.log(wp.max(1.0 - alpha[1], 1.0e-30)),
-                                   wp.log(wp.max(1.0 - alpha[2], 1.0e-30)))
-                    t0 = t_plane + imp.front[base + k] / cos_f
-                    t1 = t_plane + imp.back[base + k] / cos_f
-                    if surf.object_depth == 0:
-                        if t_plane > t_s:
-                            tau = wp.vec3(0.0)
-                    elif t_s <= t0:
-                        tau = wp.vec3(0.0)
-                    elif t_s < t1:
-                        tau = tau * ((t_s - t0) / (t1 - t0))
-                    Lq = bilinear3(shaded.texels, shaded.first[i], T, fx, fy)
-        if tau[0] > 0.0 or tau[1] > 0.0 or tau[2] > 0.0:
-            tr = transmittance_rgb(tau)
-            L += wp.cw_mul(wp.cw_mul(Tr, wp.vec3(1.0) - tr), Lq)
-            Tr = wp.cw_mul(Tr, tr)
-            if wp.max(Tr[0], wp.max(Tr[1], Tr[2])) < 1.0e-5:
-                break
-    behind = background
-    if t_s < INF:
-        behind = surf.colour[tid]
-    image[tid] = L + wp.cw_mul(Tr, behind)
+                t_plane = wp.dot(c - o, imp.fwd) / cos_f
+                if t_plane > 0.0:
+                    x = o + t_plane * d - c
+                    T = imp.res
+                    R = B.reach[i]
+                    fx = (wp.dot(x, imp.right) / R + 1.0) * 0.5 * float(T) - 0.5
+                    fy = (wp.dot(x, imp.up) / R + 1.0) * 0.5 * float(T) - 0.5
+                    if fx > -1.0 and fx < float(T) and fy > -1.0 and fy < float(T):
+                        base = B.texel0[t]
+                        tr = one - bilinear3(imp.alpha, base, T, fx, fy)
+                        k = wp.clamp(int(fy + 0.5), 0, T - 1) * T + wp.clamp(int(fx + 0.5), 0, T - 1)
+                        t0 = t_plane + imp.front[base + k] / cos_f
+                        t1 = t_plane + imp.back[base + k] / cos_f
+                        if surf.object_depth == 0:
+                            if t_plane > t_s:
+                                tr = one
+                        elif t_s <= t0:
+                            tr = one
+                        elif t_s < t1:
+                            f = (t_s - t0) / (t1 - t0)
+                            tr = wp.vec3(wp.pow(wp.max(tr[0], 1.0e-30), f), wp.pow(wp.max(tr[1], 1.0e-30), f),
+                                         wp.pow(wp.max(tr[2], 1.0e-30), f))
+                        if tr[0] < 1.0 or tr[1] < 1.0 or tr[2] < 1.0:
+                            Lq = bilinear3(shaded.texels, shaded.first[i], T, fx, fy)
+            if tr[0] < 1.0 or tr[1] < 1.0 or tr[2] < 1.0:
+                L += wp.cw_mul(wp.cw_mul(Tr, one - tr), Lq)
+                Tr = wp.cw_mul(Tr, tr)
+                if wp.max(Tr[0], wp.max(Tr[1], Tr[2])) < 1.0e-5:
+                    break
+        behind = background
+        if t_s < INF:
+            behind = surf.colour[tid]
+        image[tid] = L + wp.cw_mul(Tr, behind)
 
 
 def morton_groups(positions: np.ndarray, size: int) -> list[np.ndarray]:
@@ -426,7 +441,7 @@ class DepthImpostors(Technique):
     NAME = NAME
     SETTINGS = SETTINGS
     QUALITY = Quality(knob="slices", start=2, top=512, order=1, biases=(
-        Bias("light_pass", exact=0), Bias("impostor_res", factor=4, order=1),
+        Bias("light_pass", exact=0), Bias("impostor_detail", factor=4, order=1),
         Bias("light_samples", factor=4, order=1), Bias("sky_samples", factor=4, order=1, when="sky")))
     LEAVES_OUT = ("multiple scattering",)
 
@@ -438,7 +453,9 @@ class DepthImpostors(Technique):
         self._template_key: tuple | None = None  # what the impostors were made from
         self.blocks: Blocks | None = None
         self._reach_t = None  # per template bounding radius (device)
-        self._owner = None  # per impostor texel: its template
+        self._textured_t = None  # the templates with a texture (device)
+        self._tex_reach = None  # their bounding radii (host)
+        self._inst_host = None  # per instance on the host: centre, bounding radius, textured or not
         self._textured = None  # instances with a texture (device) and their first radiance texel
         self._first = None
         self._particle_of = None  # one-particle instances: their particle index in the cloud
@@ -457,13 +474,15 @@ class DepthImpostors(Technique):
     def stages(self):
         surfaces = bool(self.scene.surfaces)
         return self.uploads.stages() + [
-            Stage("blocks", self._blocks, reads=("medium",), settings=("impostor_res", "cluster", "light_pass")),
+            Stage("blocks", self._blocks, reads=("medium",),
+                  settings=("impostor_res", "impostor_detail", "cluster", "light_pass")),
             Stage("light", self._light, reads=("lights", "background"),
                   settings=("slices", "light_pass", "light_terms", "light_texels", "light_samples", "sky_samples",
                             "light_blocks"),
                   after=("blocks", "lights")),
             Stage("templates", self._templates, after=("blocks",)),
-            Stage("impostors", self._impostors, reads=("camera",), after=("templates",)),
+            Stage("impostors", self._impostors, reads=("camera",), settings=("impostor_detail",),
+                  after=("templates",)),
             Stage("shade", self._shade, reads=("camera",), settings=("widen",), after=("light", "impostors")),
             Stage("surfaces_lit", self._surfaces_lit, reads=("camera",), after=("light", "surfaces"),
                   needed=surfaces),
@@ -474,20 +493,20 @@ class DepthImpostors(Technique):
     # --- stages -------------------------------------------------------------------------
 
     def _blocks(self):
-        device, T = self.device, self.settings["impostor_res"]
+        device = self.device
         centres, tpl_of, offsets, first, count, t_radius, t_sigma, t_albedo, texel0, particle_of = ([] for _ in range(10))
-        texels = 0
+        n_tex = 0  # textured templates so far
 
         def template(offs: np.ndarray, m, textured: bool) -> int:
-            nonlocal texels
+            nonlocal n_tex
             first.append(sum(len(o) for o in offsets))
             offsets.append(np.asarray(offs, np.float64).reshape(-1, 3))
             count.append(len(offsets[-1]))
             t_radius.append(m.radius)
             t_sigma.append(m.sigma_t)
             t_albedo.append(m.albedo)
-            texel0.append(texels if textured else -1)
-            texels += T * T if textured else 0
+            texel0.append(n_tex if textured else -1)  # times T^2 once T is known
+            n_tex += 1 if textured else 0
             return len(first) - 1
 
         base = 0
@@ -521,6 +540,10 @@ class DepthImpostors(Technique):
         particle_of = np.concatenate(particle_of)
         reach_t = np.array([np.sqrt((offsets_np[f:f + c] ** 2).sum(1)).max() + r
                             for f, c, r in zip(first, count, t_radius)], np.float32)
+        textured_t = np.nonzero(np.asarray(texel0) >= 0)[0].astype(np.int32)
+        T = self._layout_res(reach_t[textured_t], np.asarray(t_radius, np.float64)[textured_t])
+        texel0 = [j * T * T if j >= 0 else -1 for j in texel0]
+        texels = n_tex * T * T
         B = Blocks()
         f3 = lambda a: wp.array(np.asarray(a, np.float32).reshape(-1, 3), dtype=wp.vec3, device=device)  # noqa: E731
         B.centre = f3(centres)
@@ -533,18 +556,17 @@ class DepthImpostors(Technique):
         B.sigma_t = f3(t_sigma)
         B.albedo = f3(t_albedo)
         B.texel0 = wp.array(np.asarray(texel0, np.int32), dtype=int, device=device)
-        B.res = T
+        B.res = T  # the layout's texels a side; Impostors.res: this view's, at most this
         self.blocks = B
         self._reach_t = wp.array(reach_t, dtype=float, device=device)
-        owner = np.full(texels, -1, np.int32)
-        for t, t0 in enumerate(texel0):
-            if t0 >= 0:
-                owner[t0:t0 + T * T] = t
-        self._owner = wp.array(owner, dtype=int, device=device)
+        self._textured_t = wp.array(textured_t, dtype=int, device=device)
+        self._tex_reach = reach_t[textured_t]  # host: the textured templates' radii, for the view's T
         self.texels = texels
         self.n_instances = len(tpl_of)
         textured = np.nonzero(np.asarray(texel0)[tpl_of] >= 0)[0].astype(np.int32) if len(tpl_of) else np.zeros(0, np.int32)
         self.n_textured = len(textured)
+        self._inst_host = (centres.astype(np.float64), reach_t[tpl_of].astype(np.float64),
+                           np.asarray(texel0, np.int64)[tpl_of] >= 0 if len(tpl_of) else np.zeros(0, bool))
         self._textured = wp.array(textured, dtype=int, device=device)
         first_rad = np.full(max(len(tpl_of), 1), 0, np.int32)
         first_rad[textured] = np.arange(len(textured), dtype=np.int32) * T * T
@@ -593,9 +615,40 @@ class DepthImpostors(Technique):
         imp.front = wp.zeros(n, dtype=float, device=self.device)
         imp.back = wp.zeros(n, dtype=float, device=self.device)
         imp.mid = wp.zeros(n, dtype=float, device=self.device)
+        imp.res = self._view_res()
         if self.texels:
-            dev.launch(make_impostors, self.texels, [self.blocks, self._reach_t, imp, self._owner], self.device)
+            dev.launch(make_impostors, self._textured_t.shape[0] * imp.res * imp.res,
+                       [self.blocks, self._reach_t, imp, self._textured_t], self.device)
         self.impostors = imp
+
+    def _layout_res(self, reach: np.ndarray, radius: np.ndarray) -> int:
+        """Texels a side the impostors are laid out for: ``impostor_res``, or where that is 0,
+        ``impostor_detail`` x 3 R / r for the textured template of the most particle radii r
+        across its radius R (a texel two thirds of a radius wide: finer adds nothing the
+        spheres' own edges do not blur), within [RES_MIN, RES_MAX]."""
+        fixed = self.settings["impostor_res"]
+        if fixed > 0 or not len(reach):
+            return max(fixed, 1)
+        across = float(np.max(reach / np.maximum(radius, 1e-12)))
+        return int(np.clip(np.ceil(self.settings["impostor_detail"] * 3.0 * across), RES_MIN, RES_MAX))
+
+    def _view_res(self) -> int:
+        """Texels a side for this view: the layout's, or where ``impostor_res`` is 0, no more
+        than ``impostor_detail`` x D / 2 for D the largest projected diameter in pixels of a
+        textured instance (2 R / (distance - R) x the focal length in pixels): a texel need not
+        be finer than two pixels. An instance around the camera keeps the layout's."""
+        T = self.blocks.res
+        centres, reach, textured = self._inst_host
+        if self.settings["impostor_res"] > 0 or not textured.any():
+            return T
+        cam = self.scene.camera
+        focal = 0.5 * cam.height / np.tan(np.radians(cam.fov_y) / 2.0)
+        dist = np.linalg.norm(centres[textured] - np.asarray(cam.origin, np.float64), axis=1)
+        R = reach[textured]
+        if np.any(dist <= R):
+            return T
+        D = float(np.max(2.0 * R / (dist - R))) * focal
+        return int(np.clip(np.ceil(self.settings["impostor_detail"] * 0.5 * D), RES_MIN, T))
 
     def _sky_args(self):
         """The sky's map and directions for a kernel (an empty array when there is no sky)."""
@@ -610,7 +663,7 @@ class DepthImpostors(Technique):
         return cl
 
     def _shade(self):
-        device, T = self.device, self.settings["impostor_res"]
+        device, T = self.device, self.blocks.res
         eye = wp.vec3(*self.scene.camera.origin)
         self.texel_radiance = wp.zeros(max(self.n_textured * T * T, 1), dtype=wp.vec3, device=device)
         self.particle_radiance = wp.zeros(max(self.n_instances, 1), dtype=wp.vec3, device=device)
@@ -620,9 +673,10 @@ class DepthImpostors(Technique):
         if self.n_textured:
             radii = self._cloud.radius
             widen = self.settings["widen"] * (float(np.median(radii)) if len(radii) else 0.0)
+            T = self.impostors.res
             dev.launch(shade_texels, self.n_textured * T * T,
                        [self.blocks, self.impostors, self._cloud_light(), phase_fn(self.phase, self.table), eye, widen,
-                        self._textured, self._first, self.texel_radiance], device)
+                        self._textured, self.texel_radiance], device)
         if self.n_instances > self.n_textured:
             n = self._cloud.struct.centres.shape[0]
             for lights, lp, is_sky in ((self.uploads.lights, self.light_pass, 0), (sky, self.sky_pass, 1)):
@@ -661,8 +715,9 @@ class DepthImpostors(Technique):
         shaded.texels, shaded.first, shaded.particles = self.texel_radiance, self._first, self.particle_radiance
         surf = SurfaceLayer()
         surf.depth, surf.colour, surf.object_depth = self.surf_depth, self.surf_colour, self.settings["object_depth"]
-        dev.launch(gather, n, [view, self.blocks, self.impostors, tl, shaded, surf, wp.vec3(*self.scene.background),
-                               self.image], device)
+        per = dev.per_thread(device)
+        dev.launch(gather, dev.groups(n, per), [per, view, self.blocks, self.impostors, tl, shaded, surf, wp.vec3(*self.scene.background),
+                               self.image], device, min_split=dev.MIN_SPLIT // per)
 
     def output(self):
         return self.image
@@ -674,19 +729,21 @@ class DepthImpostors(Technique):
         ``light_refined``: how often its map was refined to meet its tolerance;
         ``light_fell_back``: whether it fell back to exact transmittance;
         ``light_template_texels``: texels a side of each template's light impostor (0: the
-        light pass splatted particle by particle)."""
+        light pass splatted particle by particle); ``impostor_res``: texels a side of the
+        camera impostors in this view (``_view_res``)."""
         return {"instances": self.n_instances, "block_centres": self.blocks.centre.numpy(),
                 "block_reach": self.blocks.reach.numpy(),
                 "light_texels": self.light_pass.M if self.light_pass is not None else 0,
                 "light_refined": len(self.light_pass.refined) if self.light_pass is not None else 0,
                 "light_fell_back": bool(self.light_pass is not None and self.light_pass.fell_back),
-                "light_template_texels": self.light_pass.template_texels if self.light_pass is not None else 0}
+                "light_template_texels": self.light_pass.template_texels if self.light_pass is not None else 0,
+                "impostor_res": self.impostors.res if self.impostors is not None else 0}
 
     def arrays(self, for_view: bool = False, resolution: int = 128) -> dict:
         """The instances (centres, bounding radii), the first textured template's impostor
         layers (opacity, front and back depth; T x T) with the frame they face and the
         instance that shows them, and the light pass's faces and slices."""
-        T = self.settings["impostor_res"]
+        T = self.impostors.res if self.impostors is not None else 0
         out = {"instances": self.blocks.centre.numpy(), "instance_reach": self.blocks.reach.numpy()}
         if self.texels and self.impostors is not None:
             imp = self.impostors
