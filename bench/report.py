@@ -137,14 +137,16 @@ def paper_section(rows: list[dict], png: Path) -> list[str]:
         first.setdefault(r["params"].get("setup"), o)
     base = [first[r["params"].get("setup")] for r in rows]
     it = "iteration_ms" in rows[0]  # illumination networks: one iteration timed alone
+    tex = "impostor_res" in rows[0]  # depth impostors: the camera impostors' texels a side
     lines = ["| parameters | paper FPS | ours FPS | paper ÷ first row | ours ÷ first row | stages ran (ms) | peak MB |"
-             + (" one iteration ms | GFLOP/s | of FP32 peak | network build ms |" if it else ""),
-             "|---|---|---|---|---|---|---|" + ("---|---|---|---|" if it else "")]
+             + (" one iteration ms | GFLOP/s | of FP32 peak | network build ms |" if it else "")
+             + (" gather tests (M) | impostor texels T |" if tex else ""),
+             "|---|---|---|---|---|---|---|" + ("---|---|---|---|" if it else "") + ("---|---|" if tex else "")]
     for r, o, p, b in zip(rows, ours, paper, base):
-        extra = ""
+        extra = f" {r.get('gather_tests', 0) / 1e6:.2f} | {r['impostor_res'] or '–'} |" if tex else ""
         if it:
             frac = r.get("peak_fraction")
-            extra = (f" {r['iteration_ms']:.2f} | {r['gflops']:.1f} | {f'{100 * frac:.1f}%' if frac else '–'} | "
+            extra += (f" {r['iteration_ms']:.2f} | {r['gflops']:.1f} | {f'{100 * frac:.1f}%' if frac else '–'} | "
                      f"{r['network_ms']:.1f} |")
         lines.append(f"| {_params(r)} | {_fmt(p)} | {o:.1f} | {_fmt(p / p0 if p and p0 else None)} | "
                      f"{o / b:.3f} | {_stages(r)} | {r['peak_mem_mb']:.0f} |" + extra)

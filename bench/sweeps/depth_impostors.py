@@ -52,15 +52,23 @@ is to its own first row (no blocks).
 
 **Stages.** *light*: the light pass, block by block where the cloud is built of blocks (one
 light impostor per template and light, b work, splatted once per instance, N / b); *impostors*:
-the template's camera impostor; *shade*: the light at every impostor texel (blocks) or particle
-(no blocks); *gather*: every pixel composites the instances over it, nearest first.
+the template's camera impostor (b particles x T^2 texels, each texel's chords weighed against the
+others in front: b^2 T^2, why 20 blocks of 400 cost more here than 40 of 200); *shade*: the light
+at every impostor texel (blocks) or particle (no blocks); *gather*: every pixel composites the
+instances over it, nearest first. *T* (the last column) is the camera impostor's texels a side,
+from the block's size: 3 R / r (a texel two thirds of a particle radius r across, R the block's
+radius), no finer than two pixels of the block's largest projected diameter; so the 1600 blocks
+of 5 particles get T = 8, not the 16 a fixed resolution gave them (4x the texels to shade).
 
 **The paper's no-block row.** On the paper's GPU each particle on its own is a draw with a
 read-back of its light from the light pass, so the per-particle cost is fixed overhead and
 blocks remove it almost wholly (25x at 40 blocks). Here no stage has a per-particle overhead
 of that kind: with no blocks a particle costs its shading (a few light-map reads) and its
 pixels in the gather, and blocks save only the part of that work that is per particle, not
-the pixels a block still covers. That is why our best ratio is smaller than the paper's.
+the pixels a block still covers. The gather is the floor: the last column but one counts the
+(pixel, instance) pairs it looks at, with no blocks mostly misses of a sphere test, with blocks
+an impostor lookup each, on top of every pixel's own cost. That is why our best ratio is
+smaller than the paper's.
 """
 
 
@@ -107,7 +115,7 @@ def impostor_frame(params: dict, device: str, quick: bool) -> dict:
     row = _moving_frames(r, scene, repeats) if paper else time_frames(r, repeats, invalidate=("medium", "lights"))
     d = r.diagnostics()
     row.update(instances=d["instances"], per_block=per_block, light_texels=d["light_texels"],
-               impostor_res=d["impostor_res"],
+               impostor_res=d["impostor_res"], gather_tests=d["gather_tests"],
                light_template_texels=d["light_template_texels"],
                scene=f"{len(scene.media[0].positions)} particles, {d['instances']} instances of {per_block}, "
                      f"{scene.camera.width}x{scene.camera.height}, "

@@ -66,7 +66,7 @@ from .. import device as dev
 from ..geometry.camera import camera_view
 from ..geometry.intersect import ray_sphere
 from ..geometry.mesh import Surfaces, occluded, surface_hit
-from ..geometry.raster import RasterView, TileLists, bin_spheres, pixel_ray, pixel_tile
+from ..geometry.raster import TILE, RasterView, TileLists, bin_spheres, pixel_ray, pixel_tile
 from ..media.lightpass import REPRESENTATIONS, LightMap, LightPass, optical_depth_to_light
 from ..media.particles import BlockCloud, Blocks, ParticleBuffers, Particles
 from ..physics.brdf import brdf_eval
@@ -470,6 +470,7 @@ class DepthImpostors(Technique):
         self.texel_radiance = self.particle_radiance = None
         self.surf_depth = self.surf_colour = None
         self.image = None
+        self.gather_tests = 0  # (pixel, instance) pairs the gather looks at: its tiles' lists x their pixels
 
     def stages(self):
         surfaces = bool(self.scene.surfaces)
@@ -710,6 +711,7 @@ class DepthImpostors(Technique):
         eye = np.asarray(cam.origin, np.float64)
         z_far = float(np.max(np.linalg.norm(centres - eye, axis=1) + reach)) if len(centres) else 1.0
         tl = bin_spheres(view, self.blocks.centre, self.blocks.reach, z_far, device)
+        self.gather_tests = (tl.values.shape[0] // 2) * TILE * TILE
         self.image = wp.empty(n, dtype=wp.vec3, device=device)
         shaded = Shaded()
         shaded.texels, shaded.first, shaded.particles = self.texel_radiance, self._first, self.particle_radiance
@@ -730,14 +732,16 @@ class DepthImpostors(Technique):
         ``light_fell_back``: whether it fell back to exact transmittance;
         ``light_template_texels``: texels a side of each template's light impostor (0: the
         light pass splatted particle by particle); ``impostor_res``: texels a side of the
-        camera impostors in this view (``_view_res``)."""
+        camera impostors in this view (``_view_res``); ``gather_tests``: the (pixel, instance)
+        pairs the gather looks at (each tile's list times its pixels)."""
         return {"instances": self.n_instances, "block_centres": self.blocks.centre.numpy(),
                 "block_reach": self.blocks.reach.numpy(),
                 "light_texels": self.light_pass.M if self.light_pass is not None else 0,
                 "light_refined": len(self.light_pass.refined) if self.light_pass is not None else 0,
                 "light_fell_back": bool(self.light_pass is not None and self.light_pass.fell_back),
                 "light_template_texels": self.light_pass.template_texels if self.light_pass is not None else 0,
-                "impostor_res": self.impostors.res if self.impostors is not None else 0}
+                "impostor_res": self.impostors.res if self.impostors is not None and self.texels else 0,
+                "gather_tests": self.gather_tests}
 
     def arrays(self, for_view: bool = False, resolution: int = 128) -> dict:
         """The instances (centres, bounding radii), the first textured template's impostor
