@@ -264,3 +264,46 @@ def test_majorant_grid_bounds_the_density():
     assert np.all(fine <= bound * (1 + 1e-6) + 1e-7), float(np.max(fine - bound))
     sparse = np.pad(np.ones((1, 1, 1), np.float32), 20)
     assert majorant_grid(sparse).sum() <= 8.0  # the one sample reaches at most 2 x 2 x 2 coarse cells
+
+
+def test_a_point_light_in_an_empty_cornell_box_lights_every_wall_pixel_even_on_its_edges(device):
+    """No media, one point light inside the box, direct light only, pixel centres: each pixel
+    is rho / pi I cos / r^2 of the wall it sees (deterministic: one sample is exact). On the
+    box's inner edges a pixel ray meets two walls at once; there it lies between the two
+    walls' values. A shadow ray leaving such an edge starts on the other wall's plane
+    (``occluded`` passes over a hit closer than RAY_EPS): without that, those pixels were
+    black. The camera sees the edges at several pixel centres, so the check can fail."""
+    from warpvol.scene.shapes import CORNELL_GREEN, CORNELL_RED
+
+    cam = camera(origin=(0.0, 0.0, 3.9), fov=40.0, w=80, h=60)
+    light = np.array([-0.5, 0.8, 0.3])
+    scene = {"name": "empty-cornell", "camera": cam, "background": [0.0, 0.0, 0.0],
+             "lights": [{"type": "point", "position": light.tolist(), "intensity": [4.0, 4.0, 4.0]}],
+             "media": [], "surfaces": [{"type": "procedural", "name": "cornell_box", "diffuse": 0.7}]}
+    image = wv.render(scene, "reference", device=device, spp=1, max_bounces=1, pixel_area=0).image
+    o, d = pixel_rays(cam)
+    walls = [(1, -1.0, (0.7,) * 3), (1, 1.0, (0.7,) * 3), (2, -1.0, (0.7,) * 3), (0, -1.0, CORNELL_RED),
+             (0, 1.0, CORNELL_GREEN)]  # axis, plane, colour: floor, ceiling, back, left, right
+    t_all, value = [], []
+    for axis, plane, colour in walls:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (plane - o[axis]) / d[..., axis]
+        x = o + t[..., None] * d
+        inside = (t > 0) & np.all(np.abs(np.delete(x, axis, axis=-1)) <= 1.0 + 1e-6, axis=-1)
+        to_light = light - x
+        r2 = (to_light**2).sum(-1)
+        cos = np.abs(to_light[..., axis]) / np.sqrt(r2)
+        t_all.append(np.where(inside, t, np.inf))
+        value.append(np.asarray(colour) / np.pi * 4.0 * (cos / r2)[..., None])
+    t_all, value = np.stack(t_all), np.stack(value)
+    nearest = t_all.min(0)
+    seen = np.isfinite(nearest)
+    close = t_all <= nearest * (1 + 1e-5)  # the walls met at the nearest hit (two on an edge)
+    lo = np.where(close[..., None], value, np.inf).min(0)
+    hi = np.where(close[..., None], value, -np.inf).max(0)
+    edge = seen & (close.sum(0) > 1)
+    assert edge.sum() >= 4, edge.sum()
+    assert np.all(image[~seen] == 0.0)
+    rel = 2e-3  # float32 hit points and cosines
+    assert np.all(image[seen] >= lo[seen] * (1 - rel) - 1e-6), np.argwhere(seen & np.any(image < lo * (1 - rel) - 1e-6, -1))
+    assert np.all(image[seen] <= hi[seen] * (1 + rel) + 1e-6), np.argwhere(seen & np.any(image > hi * (1 + rel) + 1e-6, -1))
