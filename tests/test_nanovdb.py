@@ -202,3 +202,22 @@ def test_builtin_cloud_is_sparse_and_holds_its_generator(device):
     sigma, _, _ = wv.extinction_volume(s, resolution=128, device=device)
     np.testing.assert_allclose(sigma[..., 0], expected * m.sigma_t_scale[0], rtol=1e-5, atol=1e-5)
     assert os.path.getsize(NANOVDB_CLOUD) < 100_000
+
+
+@pytest.mark.cpu_only
+def test_majorant_grid_from_many_leaves_split_over_the_cores_equals_the_dense_one(tmp_path):
+    """A 64^3 grid of 512 full leaves: the leaf pass is split over the CPU's cores, 32^3 voxels
+    folding into each coarse cell's maximum. Each core fills its own copy (Warp's CPU atomics
+    are not atomic across threads; a shared grid lost maxima now and then, and the majorant
+    fell below the samples it bounds). Five builds, each equal to the dense bound."""
+    import warp as wp
+
+    from warpvol.media.grid import volume_majorant_grid
+
+    a = np.random.default_rng(5).uniform(0.1, 2.0, (64, 64, 64)).astype(np.float32)
+    path = wv.save_volume(str(tmp_path / "full.nvdb"), a, (0, 0, 0), (1, 1, 1))
+    with open(path, "rb") as fh:
+        vol = wp.Volume.load_from_nvdb(fh, device="cpu")
+    want = majorant_grid(a)
+    for _ in range(5):  # sample (i, j, k) is voxel (i, j, k): save_volume's layout
+        np.testing.assert_array_equal(volume_majorant_grid(vol, (0, 0, 0), (64, 64, 64)), want)

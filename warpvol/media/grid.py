@@ -142,6 +142,13 @@ def leaf_majorant(offset: int, volume: wp.uint64, leaves: wp.array(dtype=wp.vec3
                     wp.atomic_max(out, (k * res[1] + j) * res[0] + i, v)
 
 
+@wp.kernel
+def max_into(offset: int, src: wp.array(dtype=float), dst: wp.array(dtype=float)):
+    """dst = max(dst, src) elementwise: folds a core's private copy of a majorant grid into it."""
+    tid = wp.tid() + offset
+    dst[tid] = wp.max(dst[tid], src[tid])
+
+
 def volume_majorant_grid(volume: wp.Volume, origin, dims, outside: float = 0.0, res: int = MAJORANT_RES,
                          device=None) -> np.ndarray:
     """``majorant_grid`` of the samples of a float NanoVDB volume (voxel ``origin`` + (i, j, k)
@@ -163,10 +170,12 @@ def volume_majorant_grid(volume: wp.Volume, origin, dims, outside: float = 0.0, 
     leaves = wp.empty(volume.get_tile_count(), dtype=wp.vec3i, device=device)
     if leaves.shape[0]:
         volume.get_tiles(out=leaves)
-        dev.launch(leaf_majorant, leaves.shape[0] * 512,
-                   [volume.id, leaves, wp.vec3i(*origin), wp.vec3i(*dims),
-                    wp.array(np.concatenate(cells), dtype=wp.vec2i, device=device), wp.vec3i(*first), wp.vec3i(*r),
-                    out], device)
+        # each core into its own copy (Warp's CPU atomics are not atomic across threads: a
+        # shared grid lost maxima, and the majorant fell below the density it bounds)
+        dev.launch_private(leaf_majorant, leaves.shape[0] * 512,
+                           [volume.id, leaves, wp.vec3i(*origin), wp.vec3i(*dims),
+                            wp.array(np.concatenate(cells), dtype=wp.vec2i, device=device), wp.vec3i(*first),
+                            wp.vec3i(*r)], out, max_into, device)
     return np.maximum(out.numpy().reshape(r[2], r[1], r[0]), np.float32(outside))
 
 
