@@ -454,7 +454,6 @@ class DepthImpostors(Technique):
         self.blocks: Blocks | None = None
         self._reach_t = None  # per template bounding radius (device)
         self._textured_t = None  # the templates with a texture (device)
-        self._tex_reach = None  # their bounding radii (host)
         self._inst_host = None  # per instance on the host: centre, bounding radius, textured or not
         self._textured = None  # instances with a texture (device) and their first radiance texel
         self._first = None
@@ -561,13 +560,12 @@ class DepthImpostors(Technique):
         self.blocks = B
         self._reach_t = wp.array(reach_t, dtype=float, device=device)
         self._textured_t = wp.array(textured_t, dtype=int, device=device)
-        self._tex_reach = reach_t[textured_t]  # host: the textured templates' radii, for the view's T
         self.texels = texels
         self.n_instances = len(tpl_of)
-        textured = np.nonzero(np.asarray(texel0)[tpl_of] >= 0)[0].astype(np.int32) if len(tpl_of) else np.zeros(0, np.int32)
+        has_texture = np.asarray(texel0, np.int64)[tpl_of] >= 0 if len(tpl_of) else np.zeros(0, bool)
+        textured = np.nonzero(has_texture)[0].astype(np.int32)
         self.n_textured = len(textured)
-        self._inst_host = (centres.astype(np.float64), reach_t[tpl_of].astype(np.float64),
-                           np.asarray(texel0, np.int64)[tpl_of] >= 0 if len(tpl_of) else np.zeros(0, bool))
+        self._inst_host = (centres.astype(np.float64), reach_t[tpl_of].astype(np.float64), has_texture)
         self._textured = wp.array(textured, dtype=int, device=device)
         first_rad = np.full(max(len(tpl_of), 1), 0, np.int32)
         first_rad[textured] = np.arange(len(textured), dtype=np.int32) * T * T
