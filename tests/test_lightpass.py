@@ -8,7 +8,7 @@ import warp as wp
 
 from warpvol.media.lightpass import LightPass
 from warpvol.media.particles import ParticleBuffers
-from warpvol.physics.lights import Light
+from warpvol.physics.lights import Emitter
 
 RADIUS, SIGMA = 0.15, 3.0
 RNG = np.random.default_rng(3)
@@ -17,7 +17,7 @@ FLAT = CLOUD * [1.0, 1.0, 0.0]  # every centre on the plane z = 0
 
 
 def make_light(kind, position=(0.0, 0.0, 0.0), direction=(0.0, 0.0, -1.0)):
-    s = Light()
+    s = Emitter()
     s.kind = {"point": 0, "directional": 2}[kind]
     s.position = wp.vec3(*position)
     s.direction = wp.vec3(*(np.asarray(direction, float) / np.linalg.norm(direction)))
@@ -41,7 +41,7 @@ def setup(case, device):
     n = len(centres)
     cloud = ParticleBuffers(centres, np.full(n, RADIUS), np.full((n, 3), SIGMA), np.full((n, 3), 0.8), device)
     light = make_light(kind, position=where) if kind == "point" else make_light(kind, direction=where)
-    return centres, cloud, wp.array([light], dtype=Light, device=device), kind, np.asarray(where, float)
+    return centres, cloud, wp.array([light], dtype=Emitter, device=device), kind, np.asarray(where, float)
 
 
 def chord_sum(centres, x, w, t1):

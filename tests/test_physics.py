@@ -8,17 +8,17 @@ import warp as wp
 
 from warpvol.geometry.intersect import ray_box, ray_sphere, sphere_chord
 from warpvol.physics import airlight, phase, sampling, sphere, transmittance
-from warpvol.physics.lights import KINDS, Light, ball_mean_inverse_square, light_incident
+from warpvol.physics.lights import KINDS, Emitter, ball_mean_inverse_square, light_incident
 
 
 @wp.kernel
-def eval_phase(ph: phase.Phase, table: wp.array(dtype=float), cos: wp.array(dtype=float), out: wp.array(dtype=float)):
+def eval_phase(ph: phase.PhaseParams, table: wp.array(dtype=float), cos: wp.array(dtype=float), out: wp.array(dtype=float)):
     i = wp.tid()
     out[i] = phase.phase_eval(ph, table, cos[i])
 
 
 @wp.kernel
-def sample_phase(ph: phase.Phase, table: wp.array(dtype=float), seed: int,
+def sample_phase(ph: phase.PhaseParams, table: wp.array(dtype=float), seed: int,
                  cos_out: wp.array(dtype=float), phi_out: wp.array(dtype=float),
                  weight: wp.array(dtype=float), pdf_ratio: wp.array(dtype=float)):
     i = wp.tid()
@@ -52,7 +52,7 @@ def eval_step_integral(sigma: wp.array(dtype=float), dt: float, out: wp.array(dt
 
 
 @wp.kernel
-def eval_light(light: Light, x: wp.array(dtype=wp.vec3), wi_out: wp.array(dtype=wp.vec3),
+def eval_light(light: Emitter, x: wp.array(dtype=wp.vec3), wi_out: wp.array(dtype=wp.vec3),
                dist_out: wp.array(dtype=float), e_out: wp.array(dtype=wp.vec3)):
     i = wp.tid()
     wi, dist, e = light_incident(light, x[i])
@@ -70,7 +70,7 @@ def eval_airlight(table: wp.array2d(dtype=float), d: wp.array(dtype=wp.vec3), le
 
 def make_phase(kind, g=0.0, table=None, g_d=0.0, alpha=0.0, w_d=0.0):
     """The kernel struct; a table is laid out as ``phase_struct`` does: n values, then their CDF."""
-    ph = phase.Phase()
+    ph = phase.PhaseParams()
     ph.kind, ph.g, ph.offset, ph.n = phase.KINDS[kind], g, 0, 0 if table is None else len(table) // 2
     ph.g_d, ph.alpha, ph.w_d = g_d, alpha, w_d
     return ph
@@ -217,7 +217,7 @@ def test_step_integral_matches_its_closed_form(device):
 
 
 def make_light(kind, position=(0, 0, 0), direction=(0, -1, 0), strength=(2, 3, 4), inner=20.0, outer=30.0):
-    s = Light()
+    s = Emitter()
     s.kind = KINDS[kind]
     s.position, s.direction, s.strength = wp.vec3(*position), wp.vec3(*direction), wp.vec3(*strength)
     s.cos_inner, s.cos_outer = math.cos(math.radians(inner)), math.cos(math.radians(outer))

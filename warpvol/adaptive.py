@@ -216,8 +216,7 @@ def _ladder(scene, technique, device, progress, target: float, settings: dict, q
     level)."""
     r = None
     if seed is None:
-        r = Renderer(scene, technique, device, progress, **{**settings, **q.level_settings(first)})
-        r.technique.one_shot = True
+        r = Renderer(scene, technique, device, progress, one_shot=True, **{**settings, **q.level_settings(first)})
     level, images, spreads, candidate = first, [], [], None
     while True:
         if r is not None:
@@ -284,10 +283,9 @@ def render_auto(scene, device, progress: bool, settings: dict) -> Frame:
     for name, m in sorted(measured.items(), key=lambda kv: kv[1]["ms"]):
         if m["error"] <= target:
             try:
-                renderer = Renderer(scene, name, device, progress, **m["settings"])
+                renderer = Renderer(scene, name, device, progress, one_shot=True, **m["settings"])
             except SettingsError:
                 continue
-            renderer.technique.one_shot = True
             frame = renderer.render()
             worst = f" (the worst: {m['family']})" if len(families) > 1 else ""
             frame.choice = (f"{name}: measured error {m['error']:.3g} <= {target:g} on {family}{worst} in {m['ms']:.0f} ms "

@@ -184,8 +184,9 @@ class Technique:
     #: Settings ``target_error`` holds at these values (unless given) while it raises the knob.
     QUALITY_HOLD: dict = {}
 
-    #: Set by ``warpvol.render``: the frame is the only one, so an iterative technique runs to
-    #: convergence instead of its per-frame iterations (a ``Renderer`` keeps the paper's loop).
+    #: ``Renderer(one_shot=True)`` (as ``warpvol.render`` makes it): the frame is the only one, so
+    #: an iterative technique runs to convergence instead of its per-frame iterations (by
+    #: default a ``Renderer`` keeps the paper's loop).
     one_shot: bool = False
 
     def arrays(self, for_view: bool = False, resolution: int = 128) -> dict:

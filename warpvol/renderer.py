@@ -38,14 +38,17 @@ class Renderer:
 
     ``scene`` is a Scene, a .toml path, a built-in name or a dict; settings are the
     technique's (``warpvol.techniques.TECHNIQUES[name].SETTINGS``). Bad names and values
-    raise before anything runs.
+    raise before anything runs. ``one_shot``: each frame is to be a finished one, so an
+    iterative technique (illumination_network) runs to convergence instead of the paper's
+    per-frame iterations.
     """
 
     def __init__(self, scene, technique: str = "reference", device: str | None = None, progress: bool = False,
-                 **settings):
+                 *, one_shot: bool = False, **settings):
         cls = technique_class(technique)
         resolved = resolve_settings(technique, cls.SETTINGS, settings)
         self._technique = cls(load_scene(scene), dev.pick(device), resolved, progress)
+        self._technique.one_shot = bool(one_shot)
         self._pipeline = Pipeline(self._technique)
 
     @property
@@ -125,6 +128,4 @@ class Renderer:
 def render_once(scene, technique: str, device: str | None = None, progress: bool = False, **settings) -> Frame:
     """One finished frame at ``settings``: an iterative technique (illumination_network) iterates
     until it converges (a ``Renderer`` runs its per-frame iterations instead)."""
-    renderer = Renderer(scene, technique, device, progress, **settings)
-    renderer.technique.one_shot = True
-    return renderer.render()
+    return Renderer(scene, technique, device, progress, one_shot=True, **settings).render()

@@ -1,6 +1,12 @@
 """Direct lighting shared by the techniques: what a light delivers to a point in a medium
 or on a surface, through the media and past the surfaces in between.
 
+The sky (the scene's background as light from every direction) is a quadrature over K
+directions, normalised so that it is exact where nothing shadows the point:
+``sky_scattered`` for a medium (sum_k p_k T_k / sum_k p_k, the phase function's integral
+being 1) and ``sky_reflected`` for a surface (pi sum_k cos_k f_k T_k / sum_k cos_k, the
+cosine's integral over the hemisphere being pi). Each technique sums its own T_k.
+
 Transmittance to a light is either estimated without bias (``march_steps`` = 0: exact for
 homogeneous media, ratio tracking for heterogeneous ones) or marched deterministically
 with ``march_steps`` midpoint steps over the heterogeneous part (homogeneous media exact).
@@ -13,8 +19,8 @@ from .geometry.mesh import Surfaces, occluded, surface_hit
 from .geometry.shadowmap import ShadowedLights, shadow_visibility, texel_world_size
 from .media.volume import Media, homogeneous_optical_depth, sigma_t_at, transmittance_estimate
 from .physics.brdf import Material, brdf_eval
-from .physics.constants import INF, RAY_EPS, STREAM
-from .physics.lights import Light, light_incident
+from .physics.constants import INF, PI, RAY_EPS, STREAM
+from .physics.lights import Emitter, light_incident
 from .physics.transmittance import transmittance_rgb
 
 
@@ -55,7 +61,7 @@ def camera_segment(m: Media, s: Surfaces, o: wp.vec3, d: wp.vec3):
 
 
 @wp.func
-def surface_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), p: wp.vec3, n: wp.vec3, wo: wp.vec3,
+def surface_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Emitter), p: wp.vec3, n: wp.vec3, wo: wp.vec3,
                    mat: Material, c: int, rng: wp.uint32, march_steps: int) -> wp.vec3:
     """Radiance reflected toward wo by direct light; ``n`` faces wo."""
     L = wp.vec3(0.0)
@@ -101,3 +107,20 @@ def surface_through_maps(m: Media, sl: ShadowedLights, p: wp.vec3, n: wp.vec3, w
         if cos_l > 0.0:
             L += cos_l * wp.cw_mul(brdf_eval(mat, n, wo, wi), wp.cw_mul(e, transmittance_rgb(tau + tau_view)))
     return L
+
+
+@wp.func
+def sky_scattered(num: wp.vec3, den: wp.vec3) -> wp.vec3:
+    """The sky's light scattered at a point per unit sky radiance and unit scattering:
+    num / den with num = sum_k p_k T_k and den = sum_k p_k over the sky's directions (RGB where
+    the phase weight differs per channel); 0 where den is 0 (then so is num)."""
+    return wp.vec3(num[0] / wp.max(den[0], 1.0e-30), num[1] / wp.max(den[1], 1.0e-30), num[2] / wp.max(den[2], 1.0e-30))
+
+
+@wp.func
+def sky_reflected(acc: wp.vec3, csum: float) -> wp.vec3:
+    """The sky's light a surface reflects: pi acc / csum with acc = sum_k cos_k f_k L T_k and
+    csum = sum_k cos_k over the sky's directions above it; 0 where none is above it."""
+    if csum > 0.0:
+        return acc * (PI / csum)
+    return wp.vec3(0.0)

@@ -2,12 +2,13 @@
 arrays that kernels read. ``media``, ``geometry`` and ``physics`` take structs and arrays
 and know nothing of scenes; everything that reads a ``Scene`` to build them is here.
 
-``pinhole`` (Camera -> PinholeCamera), ``light_array`` (lights -> Light array),
+``pinhole`` (Camera -> PinholeCamera), ``light_array`` (lights -> Emitter array),
 ``SurfaceBuffers`` (surfaces -> one wp.Mesh and materials), ``MediaBuffers`` (media ->
-Media struct, hash grids, BVHs, NanoVDB volumes), ``medium_bounds`` / ``scene_bounds``, and
+the Media struct, from each kind's own buffers: ``grid_buffers``, ``gaussian_buffers``,
+``particle_medium_buffers``), ``medium_bounds`` / ``scene_bounds``, and
 ``extinction_volume`` (the public sampler of a scene's sigma_t).
 
-``SceneUploads`` owns the ``Media``, ``Surfaces`` and ``Light`` buffers and declares one
+``SceneUploads`` owns the ``Media``, ``Surfaces`` and ``Emitter`` buffers and declares one
 stage per part, so a change to the lights re-uploads the lights and nothing else, and a
 scene without surfaces skips building a BVH.
 """
@@ -23,13 +24,13 @@ from . import device as dev
 from .geometry.camera import PinholeCamera
 from .geometry.mesh import Surfaces
 from .geometry.shadowmap import ShadowedLights, ShadowMap, shadow_map_depths, shadow_map_for, texels
-from .media.grid import majorant_grid, volume_majorant_grid
+from .media.grid import Grid, GridBuffers
 from .media.particles import ParticleBuffers, Particles, ball_around, particle_majorant
-from .media.rbf import CUTOFF, rbf_majorant
+from .media.rbf import CUTOFF, GaussianBuffers, Gaussians, rbf_majorant
 from .media.volume import BOX, GRID, PARTICLES, RBF, SPHERE, Media, sample_extinction
 from .physics.brdf import Material
-from .physics.lights import KINDS, Light
-from .physics.phase import Phase, phase_struct
+from .physics.lights import KINDS, Emitter
+from .physics.phase import PhaseParams, phase_struct
 from .physics.sphere import fibonacci_directions
 from .physics.constants import INF
 from .pipeline import SettingsError, Stage, Technique
@@ -55,20 +56,20 @@ def pinhole(camera: Camera) -> PinholeCamera:
 
 
 def light_array(scene, device) -> wp.array:
-    """The scene's lights as an array of ``Light`` structs."""
+    """The scene's lights as an array of ``Emitter`` structs."""
     return lights_array(light_structs(scene), device)
 
 
 def lights_array(structs: list, device) -> wp.array:
-    """Host-side ``Light`` structs as a device array (empty for none)."""
-    return wp.array(structs, dtype=Light, device=device) if structs else wp.empty(0, dtype=Light, device=device)
+    """Host-side ``Emitter`` structs as a device array (empty for none)."""
+    return wp.array(structs, dtype=Emitter, device=device) if structs else wp.empty(0, dtype=Emitter, device=device)
 
 
 def light_structs(scene) -> list:
-    """The scene's lights as ``Light`` structs (host side)."""
+    """The scene's lights as ``Emitter`` structs (host side)."""
     out = []
     for light in scene.lights:
-        s = Light()
+        s = Emitter()
         s.kind = KINDS[light.type]
         s.position = wp.vec3(*light.position)
         s.direction = wp.vec3(*light.direction)
@@ -90,13 +91,13 @@ def sky_lights(background, count: int, device) -> wp.array:
 
 
 def sky_light_structs(background, count: int) -> list:
-    """``sky_lights`` as host-side ``Light`` structs ([] for a black sky or count 0)."""
+    """``sky_lights`` as host-side ``Emitter`` structs ([] for a black sky or count 0)."""
     sky = np.asarray(background, np.float64)
     if count <= 0 or not np.any(sky > 0.0):
         return []
     out = []
     for w in fibonacci_directions(count):  # w: toward the sky
-        light = Light()
+        light = Emitter()
         light.kind = KINDS["directional"]
         light.position = wp.vec3(0.0)
         light.direction = wp.vec3(*(-w))
@@ -243,36 +244,51 @@ def load_volume(path: str, device) -> wp.Volume:
         raise SceneError(f"{path}: cannot load the NanoVDB grid: {exc} (allowed: the file as the scene loaded it)") from None
 
 
+def grid_buffers(m: GridMedium, device) -> GridBuffers:
+    """A grid medium's samples on the device: its NanoVDB file, or its dense array."""
+    if m.volume is not None:
+        return GridBuffers(None, load_volume(m.volume.path, device), m.volume_index_min, m.dims, m.bounds_min,
+                           m.bounds_max, device, m.volume.outside_leaves)
+    return GridBuffers(m.density, None, None, m.dims, m.bounds_min, m.bounds_max, device)
+
+
+def gaussian_buffers(m: RBFMedium, device) -> tuple[GaussianBuffers, float]:
+    """An RBF medium's Gaussians on the device, and the bound of its density factor."""
+    radii, amps = m.gaussians()
+    # one radius for all: the scalar, so the bound is the one a uniform medium always had
+    same = len(radii) == 0 or bool(np.all(radii == radii[0]))
+    return (GaussianBuffers(m.centers, radii, amps, m.radius, device),
+            rbf_majorant(m.centers, m.radius if same else radii, amplitudes=amps))
+
+
+def particle_medium_buffers(m: ParticleMedium, device) -> ParticleBuffers:
+    """A particle medium as a cloud of its own, as every particle kernel reads one."""
+    n = len(m.positions)
+    return ParticleBuffers(m.positions, np.full(n, m.radius), np.tile(m.sigma_t, (n, 1)), np.tile(m.albedo, (n, 1)),
+                           device)
+
+
 class MediaBuffers:
-    """Owns the device arrays (and hash grids) behind a ``Media`` struct."""
+    """Owns the device buffers behind a ``Media`` struct: each medium's own (``grids``,
+    ``gaussians``, ``clouds``: the kinds' buffers, in the order of the scene's media)."""
 
     def __init__(self, scene: Scene, device):
         """Every medium of ``scene`` on ``device``: per medium its kind, box and bounding ball,
-        extinction, albedo and phase (its table in one shared array), plus what its kind needs
-        (a grid's dense or NanoVDB values and its majorant grid; an RBF medium's centres with
-        their radii and amplitudes; a particle cloud's spheres and hash grid), and the ``Media``
-        struct the kernels read."""
-        kinds, bmin, bmax, center, radius, sigma, albedo, phases, dims, offset, reach = ([] for _ in range(11))
-        majorants, grid_chunks, point_chunks, tables = [], [], [], []
-        radius_chunks, amplitude_chunks = [], []  # per RBF Gaussian
-        n_grid = n_points = n_table = n_majorant = 0
-        point_media, majorant_chunks, majorant_dims, majorant_offset = [], [], [], []
-        self.volumes = []  # NanoVDB grids (wp.Volume), kept alive while kernels read them
-        self.clouds = []  # particle media (ParticleBuffers), in order
-        volume_ids, volume_origin = [], []
+        extinction, albedo and phase (its table in one shared array), and its kind's buffers
+        (a grid's dense or NanoVDB values and majorant grid; an RBF medium's Gaussians with their
+        hash grid and BVH; a particle cloud's spheres), with the ``Media`` struct kernels read."""
+        kinds, bmin, bmax, center, radius, sigma, albedo, phases, index, reach = ([] for _ in range(10))
+        majorants, tables = [], []
+        n_table = 0
+        self.grids, self.gaussians, self.clouds = [], [], []
         for m in scene.media:
-            volume_ids.append(0)
-            volume_origin.append((0, 0, 0))
-            majorant_dims.append((1, 1, 1))
-            majorant_offset.append(0)
             ph, values = phase_struct(m.phase, n_table)
             if len(values):
                 tables.append(values)
                 n_table += len(values)
             phases.append(ph)
             albedo.append(m.albedo)
-            dims.append((1, 1, 1))
-            offset.append(0)
+            index.append(0)
             center.append((0.0, 0.0, 0.0))
             radius.append(0.0)
             lo, hi = medium_bounds(m) or (np.full(3, 1.0), np.full(3, -1.0))  # empty cloud: nothing hits it
@@ -286,43 +302,21 @@ class MediaBuffers:
                 majorants.append(np.asarray(m.sigma_t))
             elif isinstance(m, GridMedium):
                 kinds.append(int(GRID))
-                dims[-1] = m.dims
-                if m.volume is not None:
-                    vol = load_volume(m.volume.path, device)
-                    self.volumes.append(vol)
-                    volume_ids[-1], volume_origin[-1] = vol.id, m.volume_index_min
-                    coarse = volume_majorant_grid(vol, m.volume_index_min, m.dims, m.volume.outside_leaves)
-                else:
-                    offset[-1] = n_grid
-                    grid_chunks.append(m.density.ravel())
-                    n_grid += m.density.size
-                    coarse = majorant_grid(m.density)
+                index[-1] = len(self.grids)
+                self.grids.append(grid_buffers(m, device))
                 sigma.append(m.sigma_t_scale)
-                majorants.append(float(coarse.max()) * np.asarray(m.sigma_t_scale))  # = the largest sample
-                mz, my, mx = coarse.shape
-                majorant_dims[-1], majorant_offset[-1] = (mx, my, mz), n_majorant
-                majorant_chunks.append(coarse.ravel())
-                n_majorant += coarse.size
+                majorants.append(self.grids[-1].bound * np.asarray(m.sigma_t_scale))  # = the largest sample
             elif isinstance(m, RBFMedium):
                 kinds.append(int(RBF))
-                radius[-1], offset[-1] = m.radius, n_points
-                point_chunks.append(m.centers)
-                radii, amps = m.gaussians()
-                radius_chunks.append(radii)
-                amplitude_chunks.append(amps)
-                point_media.append((len(kinds) - 1, n_points, len(m.centers), float(CUTOFF) * m.radius))
-                n_points += len(m.centers)
+                index[-1] = len(self.gaussians)
+                buffers, bound = gaussian_buffers(m, device)
+                self.gaussians.append(buffers)
                 sigma.append(tuple(m.peak))
-                # one radius for all: the scalar, so the bound is the one a uniform medium always had
-                same = len(radii) == 0 or bool(np.all(radii == radii[0]))
-                majorants.append(rbf_majorant(m.centers, m.radius if same else radii, amplitudes=amps)
-                                 * np.asarray(m.peak))
-            else:  # particles: a cloud of their own, as every particle kernel reads one
+                majorants.append(bound * np.asarray(m.peak))
+            else:
                 kinds.append(int(PARTICLES))
-                radius[-1], offset[-1] = m.radius, len(self.clouds)
-                n = len(m.positions)
-                self.clouds.append(ParticleBuffers(m.positions, np.full(n, m.radius), np.tile(m.sigma_t, (n, 1)),
-                                                   np.tile(m.albedo, (n, 1)), device))
+                index[-1] = len(self.clouds)
+                self.clouds.append(particle_medium_buffers(m, device))
                 sigma.append(tuple(m.sigma_t))
                 majorants.append(particle_majorant(m.positions, m.radius) * np.asarray(m.sigma_t))
         count = len(kinds)
@@ -336,49 +330,12 @@ class MediaBuffers:
         s.reach = wp.array(np.asarray([r for _, r in reach] or [0.0], np.float32), dtype=float, device=device)
         s.radius = wp.array(np.asarray(radius or [0.0], np.float32), dtype=float, device=device)
         s.sigma, s.albedo = f3(sigma), f3(albedo)
-        s.phase = wp.array(phases or [Phase()], dtype=Phase, device=device)
-        s.dims = wp.array(np.asarray(dims or [(1, 1, 1)], np.int32), dtype=wp.vec3i, device=device)
-        s.offset = wp.array(np.asarray(offset or [0], np.int32), dtype=int, device=device)
-        grid_all = grid_chunks[0] if len(grid_chunks) == 1 else np.concatenate(grid_chunks or [np.zeros(1)])
-        s.grid_data = wp.array(grid_all.astype(np.float32, copy=False), dtype=float, device=device)  # one copy only
-        s.volume = wp.array(np.asarray(volume_ids or [0], np.uint64), dtype=wp.uint64, device=device)
-        s.volume_origin = wp.array(np.asarray(volume_origin or [(0, 0, 0)], np.int32), dtype=wp.vec3i, device=device)
-        pts_all = np.concatenate(point_chunks).astype(np.float32) if n_points else np.zeros((1, 3), np.float32)
-        s.points = wp.array(pts_all, dtype=wp.vec3, device=device)
-        radius_all = np.concatenate(radius_chunks) if n_points else np.ones(1, np.float32)
-        s.point_radius = wp.array(radius_all, dtype=float, device=device)
-        s.point_amplitude = wp.array(np.concatenate(amplitude_chunks) if n_points else np.ones(1, np.float32),
-                                     dtype=float, device=device)
-        s.particles = wp.array([c.struct for c in self.clouds] or [Particles()], dtype=Particles, device=device)
+        s.phase = wp.array(phases or [PhaseParams()], dtype=PhaseParams, device=device)
         s.phase_table = wp.array(np.concatenate(tables) if tables else np.zeros(1, np.float32), dtype=float, device=device)
-        self.hash_grids = []
-        ids = np.zeros(max(count, 1), np.uint64)
-        for i, first, n, reach in point_media:
-            if n == 0:
-                continue
-            hg = wp.HashGrid(64, 64, 64, device=device)
-            hg.build(s.points[first : first + n], reach)
-            self.hash_grids.append(hg)
-            ids[i] = hg.id
-        s.hash_grid = wp.array(ids, dtype=wp.uint64, device=device)
-        # a BVH over each RBF medium's cut-off spheres: rays find
-        # the components they cross for exact optical depth and free flight
-        self.bvhs = []
-        bvh_ids = np.zeros(max(count, 1), np.uint64)
-        for i, first, n, reach in point_media:
-            if n == 0:
-                continue
-            pts = pts_all[first : first + n]
-            own = (float(CUTOFF) * radius_all[first : first + n])[:, None]  # each Gaussian's own cut-off
-            bvh = wp.Bvh(wp.array(pts - own, dtype=wp.vec3, device=device),
-                         wp.array(pts + own, dtype=wp.vec3, device=device))
-            self.bvhs.append(bvh)
-            bvh_ids[i] = bvh.id
-        s.bvh = wp.array(bvh_ids, dtype=wp.uint64, device=device)
-        s.majorant_data = wp.array(np.concatenate(majorant_chunks).astype(np.float32) if majorant_chunks
-                                   else np.zeros(1, np.float32), dtype=float, device=device)
-        s.majorant_dims = wp.array(np.asarray(majorant_dims or [(1, 1, 1)], np.int32), dtype=wp.vec3i, device=device)
-        s.majorant_offset = wp.array(np.asarray(majorant_offset or [0], np.int32), dtype=int, device=device)
+        s.index = wp.array(np.asarray(index or [0], np.int32), dtype=int, device=device)
+        s.grids = wp.array([g.struct for g in self.grids] or [Grid()], dtype=Grid, device=device)
+        s.gaussians = wp.array([g.struct for g in self.gaussians] or [Gaussians()], dtype=Gaussians, device=device)
+        s.particles = wp.array([c.struct for c in self.clouds] or [Particles()], dtype=Particles, device=device)
         het = [k >= int(GRID) for k in kinds]
         s.all_min, s.all_max = _union(bmin, bmax, [True] * count)
         s.het_min, s.het_max = _union(bmin, bmax, het)

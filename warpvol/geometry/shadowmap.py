@@ -25,7 +25,7 @@ import warp as wp
 
 from .. import device as dev
 from ..physics.constants import INF
-from ..physics.lights import Light
+from ..physics.lights import Emitter
 from .mesh import Surfaces
 from .raster import RasterView, owner, pixel_ray, rasterise, view_ray
 
@@ -51,7 +51,7 @@ class ShadowMap:
 @wp.struct
 class ShadowedLights:
     """Lights and their shadow maps (``shading.light_arriving`` reads them)."""
-    lights: wp.array(dtype=Light)
+    lights: wp.array(dtype=Emitter)
     maps: wp.array(dtype=ShadowMap)  # one per light
     depth: wp.array(dtype=float)  # the maps' texels
 

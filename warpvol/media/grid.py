@@ -22,8 +22,9 @@ import numpy as np
 import warp as wp
 
 from .. import device as dev
-from ..geometry.intersect import inside_box
+from ..geometry.intersect import inside_box, ray_box
 from ..physics.constants import INF
+from ..physics.sampling import sample_exponential
 
 
 @wp.func
@@ -303,3 +304,100 @@ def lattice_trilinear_vec3(values: wp.array(dtype=wp.vec3), base: int, n: int, l
     c01 = values[i + n * n] * (1.0 - tx) + values[i + n * n + 1] * tx
     c11 = values[i + n * n + n] * (1.0 - tx) + values[i + n * n + n + 1] * tx
     return (c00 * (1.0 - ty) + c10 * ty) * (1.0 - tz) + (c01 * (1.0 - ty) + c11 * ty) * tz
+
+
+@wp.struct
+class Grid:
+    """A density grid as kernels read it (``GridBuffers`` builds it): its samples, dense or in a
+    NanoVDB volume, and the bounds of the density per cell of its coarse majorant grid."""
+
+    data: wp.array(dtype=float)  # dense samples, x fastest (unread when volume is set)
+    volume: wp.uint64  # a NanoVDB wp.Volume holding the samples (0: data does)
+    origin: wp.vec3i  # the volume's voxel that is sample (0, 0, 0)
+    dims: wp.vec3i  # samples per axis (x, y, z)
+    lo: wp.vec3  # bounds, scene units
+    hi: wp.vec3
+    majorant: wp.array(dtype=float)  # per coarse cell, x fastest
+    majorant_dims: wp.vec3i  # coarse cells per axis (x, y, z)
+
+
+@wp.func
+def grid_density(G: Grid, x: wp.vec3) -> float:
+    """The trilinear density factor at x (dense or NanoVDB: the same value); 0 outside the bounds."""
+    if not inside_box(x, G.lo, G.hi):
+        return 0.0
+    if G.volume != wp.uint64(0):
+        return volume_trilinear(G.volume, G.origin, G.dims, G.lo, G.hi, x)
+    return grid_trilinear(G.data, 0, G.dims, G.lo, G.hi, x)
+
+
+@wp.func
+def grid_tracking(G: Grid, o: wp.vec3, d: wp.vec3, t0: float, t1: float, sig: float, ratio: bool, rng: wp.uint32):
+    """Tracking through the grid on [t0, t1) against its majorant grid (times ``sig``, the
+    channel's scale), walked cell by cell by a DDA (an exponential step that leaves a cell
+    restarts at its boundary: memoryless).
+
+    ``ratio`` False, delta tracking: (t of the first real collision, 1) or (t1, 0). ``ratio``
+    True, ratio tracking (Novak et al. 2014): (t1, an unbiased estimate of the transmittance),
+    with Russian roulette once the weight falls below 0.1."""
+    a, b = ray_box(o, d, G.lo, G.hi)
+    t = wp.max(a, t0)
+    t_end = wp.min(b, t1)
+    w = float(1.0)
+    if t >= t_end:
+        return t1, wp.where(ratio, 1.0, 0.0)
+    n = G.majorant_dims
+    cell, step, t_next, t_delta = walk_start(G.lo, wp.cw_div(G.hi - G.lo, wp.vec3(float(n[0]), float(n[1]), float(n[2]))),
+                                             n, o, d, t)
+    while t < t_end:
+        seg_end = wp.min(wp.min(wp.min(t_next[0], t_next[1]), t_next[2]), t_end)
+        mu = G.majorant[(cell[2] * n[1] + cell[1]) * n[0] + cell[0]] * sig
+        while mu > 0.0:
+            t = t + sample_exponential(wp.randf(rng), mu)
+            if t >= seg_end:
+                break
+            real = grid_density(G, o + t * d) * sig / mu
+            if not ratio:
+                if wp.randf(rng) < real:
+                    return t, 1.0
+            else:
+                w *= 1.0 - real
+                if w < 0.1:  # Russian roulette keeps long thick segments short, unbiased
+                    if wp.randf(rng) < 0.5:
+                        return t1, 0.0
+                    w *= 2.0
+        t = seg_end
+        ax = walk_axis(t_next)
+        cell[ax] = cell[ax] + step[ax]
+        t_next[ax] = t_next[ax] + t_delta[ax]
+        if cell[ax] < 0 or cell[ax] >= n[ax]:
+            break
+    return t1, wp.where(ratio, w, 0.0)
+
+
+class GridBuffers:
+    """Owns the device arrays behind a ``Grid`` struct: ``density`` (D, H, W) float samples
+    [z, y, x], or ``volume`` (a ``wp.Volume`` whose voxel ``origin`` + (i, j, k) is sample
+    (i, j, k)), of ``dims`` (x, y, z) samples over [lo, hi]; ``outside`` is what the volume
+    returns outside its leaves. ``coarse`` is the majorant grid (host, [z, y, x]) and ``bound``
+    its largest cell: the largest sample."""
+
+    def __init__(self, density, volume, origin, dims, lo, hi, device, outside: float = 0.0):
+        if volume is not None:
+            self.coarse = volume_majorant_grid(volume, origin, dims, outside)
+            data = np.zeros(1, np.float32)
+        else:
+            self.coarse = majorant_grid(density)
+            data = np.asarray(density).ravel().astype(np.float32, copy=False)  # one copy only
+        self.volume = volume  # kept alive while kernels read it
+        self.bound = float(self.coarse.max())
+        s = Grid()
+        s.data = wp.array(data, dtype=float, device=device)
+        s.volume = wp.uint64(volume.id if volume is not None else 0)
+        s.origin = wp.vec3i(*(origin if volume is not None else (0, 0, 0)))
+        s.dims = wp.vec3i(*dims)
+        s.lo, s.hi = wp.vec3(*np.asarray(lo, np.float32)), wp.vec3(*np.asarray(hi, np.float32))
+        mz, my, mx = self.coarse.shape
+        s.majorant = wp.array(self.coarse.ravel().astype(np.float32), dtype=float, device=device)
+        s.majorant_dims = wp.vec3i(mx, my, mz)
+        self.struct = s

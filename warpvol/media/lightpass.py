@@ -47,7 +47,7 @@ import warp as wp
 from .. import device as dev
 from ..geometry.intersect import ray_sphere
 from ..physics.constants import PI
-from ..physics.lights import DIRECTIONAL, Light, light_incident, particle_incident
+from ..physics.lights import DIRECTIONAL, Emitter, light_incident, particle_incident
 from ..physics.transmittance import sphere_escape, step_integral, transmittance_rgb
 from .particles import BlockCloud, Blocks, ParticleBuffers, Particles, particle_optical_depth
 
@@ -456,7 +456,7 @@ def self_shadow(tau: float, inside: bool) -> float:
 
 
 @wp.func
-def optical_depth_to_light(m: LightMap, P: Particles, skip: int, l: int, light: Light, x: wp.vec3) -> wp.vec3:
+def optical_depth_to_light(m: LightMap, P: Particles, skip: int, l: int, light: Emitter, x: wp.vec3) -> wp.vec3:
     """Optical depth from light l to x through the cloud, leaving out sphere ``skip`` (-1:
     none): from the map (a left-out sphere taken out of it exactly as the map holds it), or,
     ``EXACT``, as chord sums along the ray itself."""
@@ -469,7 +469,7 @@ def optical_depth_to_light(m: LightMap, P: Particles, skip: int, l: int, light: 
 
 
 @wp.func
-def sphere_transmittance(m: LightMap, P: Particles, p: int, l: int, light: Light, samples: int) -> wp.vec3:
+def sphere_transmittance(m: LightMap, P: Particles, p: int, l: int, light: Emitter, samples: int) -> wp.vec3:
     """Transmittance from light l averaged over particle p's sphere: the mean over
     ``samples`` points of it (``ball_point``; its own sphere included). With one point, from
     the centre through the rest of the cloud times the own sphere's mean (``self_shadow``)."""
@@ -488,7 +488,7 @@ def sphere_transmittance(m: LightMap, P: Particles, p: int, l: int, light: Light
 
 
 @wp.kernel
-def sphere_light(offset: int, P: Particles, lights: wp.array(dtype=Light), m: LightMap, samples: int,
+def sphere_light(offset: int, P: Particles, lights: wp.array(dtype=Emitter), m: LightMap, samples: int,
                  direct: wp.array(dtype=wp.vec3), travel: wp.array(dtype=wp.vec3)):
     """Thread p L + l: light l's irradiance averaged over particle p's sphere, the ball mean
     of the inverse square (``particle_incident``) times ``sphere_transmittance``, and the
@@ -507,7 +507,7 @@ def sphere_light(offset: int, P: Particles, lights: wp.array(dtype=Light), m: Li
 
 
 @wp.kernel
-def subset_light(offset: int, P: Particles, lights: wp.array(dtype=Light), m: LightMap, samples: int,
+def subset_light(offset: int, P: Particles, lights: wp.array(dtype=Emitter), m: LightMap, samples: int,
                  which: wp.array(dtype=int), out: wp.array(dtype=wp.vec3)):
     """``sphere_transmittance`` for the particles ``which`` (thread k L + l)."""
     tid = wp.tid() + offset
@@ -517,7 +517,7 @@ def subset_light(offset: int, P: Particles, lights: wp.array(dtype=Light), m: Li
 
 
 @wp.kernel
-def points_depth(offset: int, P: Particles, lights: wp.array(dtype=Light), m: LightMap, l: int,
+def points_depth(offset: int, P: Particles, lights: wp.array(dtype=Emitter), m: LightMap, l: int,
                  points: wp.array(dtype=wp.vec3), out: wp.array(dtype=wp.vec3)):
     """Optical depth from light l to each point (the whole cloud counted)."""
     tid = wp.tid() + offset

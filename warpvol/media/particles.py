@@ -5,13 +5,15 @@ Every kernel reads a cloud as a ``Particles`` struct (per-sphere radius, sigma_t
 (media/volume.py), a particle technique one for the scene's whole cloud. On it: sigma_t at a
 point through its hash grid (``particle_sigma_t``), exact optical depth along a segment
 through the union of spheres (``particle_optical_depth``, through a ``wp.Bvh`` over the
-spheres' boxes).
+spheres' boxes), and free flight, the earliest of the spheres' own first collisions
+(``particle_free_flight``).
 """
 
 import numpy as np
 import warp as wp
 
-from ..geometry.intersect import sphere_chord
+from ..geometry.intersect import ray_sphere, sphere_chord
+from .homogeneous import uniform_collision
 from .rbf import box_distance2, coarse_cells
 
 
@@ -75,6 +77,25 @@ def particle_optical_depth(P: Particles, skip: int, x: wp.vec3, w: wp.vec3, t0: 
             if c > 0.0:
                 tau += c * P.sigma_t[q]
     return tau
+
+
+@wp.func
+def particle_free_flight(P: Particles, o: wp.vec3, d: wp.vec3, t0: float, t1: float, c: int, rng: wp.uint32):
+    """The first collision on [t0, t1) along o + t d (unit d) in channel c: the earliest of the
+    spheres' own first collisions, each in a uniform medium (``uniform_collision``). Returns
+    (t, whether there is one, the generator after its draws); t = t1 when there is none."""
+    best = float(t1)
+    hit = bool(False)
+    if P.bvh != wp.uint64(0):
+        query = wp.bvh_query_ray(P.bvh, o, d)
+        k = int(0)
+        while wp.bvh_query_next(query, k, best):
+            a, b = ray_sphere(o, d, P.centres[k], P.radius[k])
+            t = uniform_collision(wp.max(a, t0), wp.min(b, best), P.sigma_t[k][c], wp.randf(rng))
+            if t < best:
+                best = t
+                hit = True
+    return best, hit, rng
 
 
 @wp.struct

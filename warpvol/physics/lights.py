@@ -22,7 +22,9 @@ KINDS = {"point": 0, "spot": 1, "directional": 2}
 
 
 @wp.struct
-class Light:
+class Emitter:
+    """A light as kernels read it (``upload.light_structs`` makes one of a scene ``Light``)."""
+
     kind: int
     position: wp.vec3
     direction: wp.vec3  # unit; travel direction (directional) or cone axis (spot)
@@ -32,7 +34,7 @@ class Light:
 
 
 @wp.func
-def spot_falloff(light: Light, cos_axis: float) -> float:
+def spot_falloff(light: Emitter, cos_axis: float) -> float:
     if cos_axis >= light.cos_inner:
         return 1.0
     if cos_axis <= light.cos_outer:
@@ -42,7 +44,7 @@ def spot_falloff(light: Light, cos_axis: float) -> float:
 
 
 @wp.func
-def light_incident(light: Light, x: wp.vec3):
+def light_incident(light: Emitter, x: wp.vec3):
     """Returns (wi, dist, E): unit direction from x to the light, distance to it
     (INF for directional), and the irradiance it delivers to a surface facing it."""
     if light.kind == DIRECTIONAL:
@@ -87,7 +89,7 @@ def ball_mean_inverse_square(r: float, d: float) -> float:
 
 
 @wp.func
-def particle_incident(light: Light, x: wp.vec3, r: float):
+def particle_incident(light: Emitter, x: wp.vec3, r: float):
     """Returns (w, dist, E) for a spherical particle of radius r centred at x: the direction
     light travels on arrival (zero when a point light sits at the centre, where it arrives
     from every side), the distance to the light (INF for directional) and the irradiance
@@ -124,7 +126,7 @@ def segment_mean_inverse_square(o: wp.vec3, d: wp.vec3, t0: float, t1: float, p:
 
 
 @wp.func
-def step_mean_irradiance(light: Light, e: wp.vec3, dist: float, o: wp.vec3, d: wp.vec3, t0: float, t1: float):
+def step_mean_irradiance(light: Emitter, e: wp.vec3, dist: float, o: wp.vec3, d: wp.vec3, t0: float, t1: float):
     """The irradiance ``e`` that ``light`` delivers at a point of the march step o + t d,
     t in [t0, t1], at distance ``dist`` (``light_incident``, times any visibility), with a point
     or spot light's 1/d^2 replaced by its mean over the step (``segment_mean_inverse_square``):

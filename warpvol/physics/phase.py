@@ -44,13 +44,16 @@ TABULATED = wp.constant(4)
 HG_DRAINE = wp.constant(5)
 
 #: Scene-file name -> kind id.
-KINDS = {"isotropic": 0, "hg": 1, "cornette_shanks": 2, "rayleigh": 3, "tabulated": 4, "hg_draine": 5}
+KINDS = {"isotropic": int(ISOTROPIC), "hg": int(HG), "cornette_shanks": int(CORNETTE_SHANKS), "rayleigh": int(RAYLEIGH),
+         "tabulated": int(TABULATED), "hg_draine": int(HG_DRAINE)}
 
 
 @wp.struct
-class Phase:
-    """A phase function: its kind, asymmetry g, (tabulated) where its table lies, and
-    (hg_draine) the Draine lobe's g_d, alpha and weight w_d; g is then the HG lobe's g."""
+class PhaseParams:
+    """A phase function as kernels read it (``phase_struct`` makes one of a scene ``Phase``;
+    ``PhaseFn`` carries it with its table): its kind, asymmetry g, (tabulated) where its
+    table lies, and (hg_draine) the Draine lobe's g_d, alpha and weight w_d; g is then the
+    HG lobe's g."""
 
     kind: int
     g: float
@@ -106,7 +109,7 @@ def draine(g: float, alpha: float, cos_theta: float) -> float:
 
 
 @wp.func
-def hg_draine(ph: Phase, cos_theta: float) -> float:
+def hg_draine(ph: PhaseParams, cos_theta: float) -> float:
     """Jendersie & d'Eon 2023: (1 - w_d) HG(g) + w_d Draine(g_d, alpha)."""
     return (1.0 - ph.w_d) * henyey_greenstein(ph.g, cos_theta) + ph.w_d * draine(ph.g_d, ph.alpha, cos_theta)
 
@@ -120,7 +123,7 @@ def tabulated(table: wp.array(dtype=float), offset: int, n: int, cos_theta: floa
 
 
 @wp.func
-def phase_eval(ph: Phase, table: wp.array(dtype=float), cos_theta: float) -> float:
+def phase_eval(ph: PhaseParams, table: wp.array(dtype=float), cos_theta: float) -> float:
     """p(cos_theta) in 1/sr for any kind."""
     if ph.kind == HG:
         return henyey_greenstein(ph.g, cos_theta)
@@ -136,7 +139,7 @@ def phase_eval(ph: Phase, table: wp.array(dtype=float), cos_theta: float) -> flo
 
 
 @wp.func
-def phase_toward(ph: Phase, table: wp.array(dtype=float), w_in: wp.vec3, w_out: wp.vec3) -> float:
+def phase_toward(ph: PhaseParams, table: wp.array(dtype=float), w_in: wp.vec3, w_out: wp.vec3) -> float:
     """p(w_in . w_out); isotropic for light that arrives from every side (w_in = 0)."""
     if wp.length_sq(w_in) == 0.0:
         return INV_4PI
@@ -214,11 +217,11 @@ def sample_tabulated_cos(table: wp.array(dtype=float), offset: int, n: int, u: f
 class PhaseFn:
     """A phase function and the table it reads (``phase_struct``'s two parts), as one argument."""
 
-    phase: Phase
+    phase: PhaseParams
     table: wp.array(dtype=float)
 
 
-def phase_fn(phase: Phase, table: wp.array) -> PhaseFn:
+def phase_fn(phase: PhaseParams, table: wp.array) -> PhaseFn:
     """``phase`` and its device ``table`` as one ``PhaseFn``."""
     pf = PhaseFn()
     pf.phase, pf.table = phase, table
@@ -235,7 +238,7 @@ def direction_from_cos(d: wp.vec3, cos_theta: float, u: float) -> wp.vec3:
 
 
 @wp.func
-def phase_sample(ph: Phase, table: wp.array(dtype=float), d: wp.vec3, u1: float, u2: float):
+def phase_sample(ph: PhaseParams, table: wp.array(dtype=float), d: wp.vec3, u1: float, u2: float):
     """Sample d' given the travel direction d. Returns (d', weight = p / pdf, pdf).
 
     HG, isotropic, tabulated and hg_draine are sampled exactly (weight 1; hg_draine picks its
@@ -288,10 +291,10 @@ def tabulated_cdf(values: np.ndarray) -> np.ndarray:
     return (cdf / cdf[-1]).astype(np.float32)
 
 
-def phase_struct(phase, offset: int = 0) -> tuple[Phase, np.ndarray]:
-    """A scene ``Phase`` as the kernel struct and its table (empty unless tabulated: the n
+def phase_struct(phase, offset: int = 0) -> tuple[PhaseParams, np.ndarray]:
+    """A scene ``Phase`` as the kernel struct (``PhaseParams``) and its table (empty unless tabulated: the n
     normalised values, then their CDF), the table placed at ``offset`` of a shared table array."""
-    ph = Phase()
+    ph = PhaseParams()
     ph.kind, ph.g, ph.offset, ph.n = KINDS[phase.type], float(phase.g), offset, 0
     ph.g_d, ph.alpha, ph.w_d = float(phase.g_d), float(phase.alpha), float(phase.w_d)
     table = np.zeros(0, np.float32)

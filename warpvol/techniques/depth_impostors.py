@@ -70,12 +70,13 @@ from ..geometry.raster import TILE, RasterView, TileLists, bin_spheres, pixel_ra
 from ..media.lightpass import REPRESENTATIONS, LightMap, LightPass, optical_depth_to_light
 from ..media.particles import BlockCloud, Blocks, ParticleBuffers, Particles
 from ..physics.brdf import brdf_eval
-from ..physics.constants import INF, PI, RAY_EPS
-from ..physics.lights import Light, light_incident
-from ..physics.phase import Phase, PhaseFn, phase_eval, phase_fn, phase_struct, phase_toward
+from ..physics.constants import INF, RAY_EPS
+from ..physics.lights import Emitter, light_incident
+from ..physics.phase import PhaseParams, PhaseFn, phase_eval, phase_fn, phase_struct, phase_toward
 from ..physics.transmittance import transmittance_rgb
 from ..pipeline import Bias, Quality, Setting, Stage, Technique
 from ..scene.procedural import split_blocks
+from ..shading import sky_reflected, sky_scattered
 from ..upload import SceneUploads, check_particle_scene, particle_buffers, pinhole, sky_lights
 
 NAME = "depth_impostors"
@@ -179,8 +180,8 @@ def make_impostors(offset: int, B: Blocks, reach: wp.array(dtype=float), imp: Im
 
 
 @wp.func
-def particle_light_transmittance(m: LightMap, P: Particles, l: int, light: Light, x: wp.vec3, wi: wp.vec3,
-                                 widen: float, ph: Phase, table: wp.array(dtype=float)) -> wp.vec3:
+def particle_light_transmittance(m: LightMap, P: Particles, l: int, light: Emitter, x: wp.vec3, wi: wp.vec3,
+                                 widen: float, ph: PhaseParams, table: wp.array(dtype=float)) -> wp.vec3:
     """Transmittance from light l to x; ``widen`` > 0: the paper's forward-scattering widening
     (section 2.2: "the radiance of those pixels of both enclosing slices are taken into
     account, for which the phase function is not negligible"), read as the light at x plus
@@ -210,9 +211,9 @@ class CloudLight:
     directions (an empty array: no sky), and the particles the maps were made from."""
 
     m: LightMap
-    lights: wp.array(dtype=Light)
+    lights: wp.array(dtype=Emitter)
     m_sky: LightMap
-    sky: wp.array(dtype=Light)
+    sky: wp.array(dtype=Emitter)
     P: Particles
 
 
@@ -237,7 +238,7 @@ class SurfaceLayer:
 
 
 @wp.func
-def in_scatter(m: LightMap, P: Particles, lights: wp.array(dtype=Light), ph: Phase, table: wp.array(dtype=float),
+def in_scatter(m: LightMap, P: Particles, lights: wp.array(dtype=Emitter), ph: PhaseParams, table: wp.array(dtype=float),
                x: wp.vec3, w_out: wp.vec3, widen: float, sky: int) -> wp.vec3:
     """Light scattered at x toward w_out per unit albedo: sum_l p E_l T_l(x). ``sky`` = 1:
     the lights are a sky's directions (``upload.sky_lights``), and the sum is divided by
@@ -250,8 +251,8 @@ def in_scatter(m: LightMap, P: Particles, lights: wp.array(dtype=Light), ph: Pha
         psum += p
         if e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0:
             L += p * wp.cw_mul(e, particle_light_transmittance(m, P, l, lights[l], x, wi, widen, ph, table))
-    if sky != 0 and psum > 0.0:
-        L = L / psum
+    if sky != 0:
+        L = sky_scattered(L, wp.vec3(psum))
     return L
 
 
@@ -294,8 +295,8 @@ def shade_particles(offset: int, B: Blocks, direct: wp.array(dtype=wp.vec3), tra
         ph_l = phase_toward(pf.phase, pf.table, travel[p * L + l], w)
         psum += ph_l
         acc += ph_l * direct[p * L + l]
-    if sky != 0 and psum > 0.0:
-        acc = acc / psum
+    if sky != 0:
+        acc = sky_scattered(acc, wp.vec3(psum))
     out[i] = out[i] + wp.cw_mul(B.albedo[B.tpl[i]], acc)
 
 
@@ -331,8 +332,7 @@ def shade_surfaces(offset: int, cam: RasterView, s: Surfaces, cl: CloudLight, de
                 if not occluded(s, x + RAY_EPS * n, wi, dist):
                     tr = transmittance_rgb(optical_depth_to_light(cl.m_sky, cl.P, -1, l, cl.sky[l], x))
                     acc += cos_l * wp.cw_mul(wp.cw_mul(brdf_eval(mat, n, -d, wi), e), tr)
-        if csum > 0.0:
-            L += acc * (PI / csum)
+        L += sky_reflected(acc, csum)
     depth[tid] = wp.where(hit, t, INF)
     colour[tid] = L
 
@@ -652,7 +652,7 @@ class DepthImpostors(Technique):
     def _sky_args(self):
         """The sky's map and directions for a kernel (an empty array when there is no sky)."""
         if self.sky is None:
-            return self.light_pass.map, wp.empty(0, dtype=Light, device=self.device)
+            return self.light_pass.map, wp.empty(0, dtype=Emitter, device=self.device)
         return self.sky_pass.map, self.sky
 
     def _cloud_light(self) -> CloudLight:

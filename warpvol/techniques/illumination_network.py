@@ -91,8 +91,8 @@ from ..geometry.raster import RasterView, TileLists, bin_spheres, pixel_ray, pix
 from ..media.lightpass import REPRESENTATIONS, LightPass
 from ..media.particles import ParticleBuffers, Particles, particle_sigma_t
 from ..physics.constants import INV_4PI, PI
-from ..physics.lights import DIRECTIONAL, Light
-from ..physics.phase import Phase, PhaseFn, phase_eval, phase_fn, phase_struct, phase_toward
+from ..physics.lights import DIRECTIONAL, Emitter
+from ..physics.phase import PhaseParams, PhaseFn, phase_eval, phase_fn, phase_struct, phase_toward
 from ..physics.sampling import orthonormal_basis
 from ..physics.sphere import fibonacci_directions
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
@@ -204,8 +204,8 @@ def link_network(offset: int, keys: wp.array(dtype=wp.int64), values: wp.array(d
 
 
 @wp.kernel
-def light_weights(offset: int, dirs: wp.array(dtype=wp.vec3), travel: wp.array(dtype=wp.vec3), ph: Phase,
-                  table: wp.array(dtype=float), normalise: int, lights: wp.array(dtype=Light), share: int,
+def light_weights(offset: int, dirs: wp.array(dtype=wp.vec3), travel: wp.array(dtype=wp.vec3), ph: PhaseParams,
+                  table: wp.array(dtype=float), normalise: int, lights: wp.array(dtype=Emitter), share: int,
                   out: wp.array(dtype=float)):
     """Thread p L + l: c = 1 / ((4 pi / D) sum_i p(w_l . w_i)) with ``normalise`` (the D
     directions then carry exactly what the particle scatters of light l), else 1. With
@@ -230,7 +230,7 @@ def light_weights(offset: int, dirs: wp.array(dtype=wp.vec3), travel: wp.array(d
 
 @wp.kernel
 def emission_network(offset: int, dirs: wp.array(dtype=wp.vec3), dl: DirectLight,
-                     albedo: wp.array(dtype=wp.vec3), alpha: wp.array(dtype=wp.vec3), ph: Phase,
+                     albedo: wp.array(dtype=wp.vec3), alpha: wp.array(dtype=wp.vec3), ph: PhaseParams,
                      table: wp.array(dtype=float), inv_scale: float, E: wp.array2d(dtype=Any)):
     """E[vp, i] = alpha a sum_l c_l p(w_l . w_i) E_l T_l, channel c of vp in row 3 vp + c
     (c_l from ``light_weights``)."""
@@ -248,7 +248,7 @@ def emission_network(offset: int, dirs: wp.array(dtype=wp.vec3), dl: DirectLight
 
 
 @wp.kernel
-def phase_matrix(offset: int, dirs: wp.array(dtype=wp.vec3), ph: Phase, table: wp.array(dtype=float), Dp: int,
+def phase_matrix(offset: int, dirs: wp.array(dtype=wp.vec3), ph: PhaseParams, table: wp.array(dtype=float), Dp: int,
                  out: wp.array(dtype=float)):
     """out[d Dp + i] = p(w_d . w_i) for d, i < D; zero in the padding."""
     tid = wp.tid() + offset
@@ -506,7 +506,7 @@ class IlluminationNetwork(Technique):
         self.M = 0  # window resolution
         self._next_direction = 0  # refresh: the next direction to re-peel
         self.dirs = self.V = self.alpha = self.tau = None
-        self.phase: Phase | None = None
+        self.phase: PhaseParams | None = None
         self.table = self.P = None
         self.p_max = 0.0
         # direct and emission stages

@@ -36,11 +36,12 @@ from ..geometry.raster import RasterView, view_ray
 from ..media.grid import lattice_trilinear_vec3
 from ..media.volume import Media, in_scatter_at, scattering_at, sigma_t_at
 from ..physics.brdf import brdf_eval
-from ..physics.constants import INF, PI, RAY_EPS
-from ..physics.lights import Light, light_incident, step_mean_irradiance
+from ..physics.constants import INF, RAY_EPS
+from ..physics.lights import Emitter, light_incident, step_mean_irradiance
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Bias, Quality, Setting, SettingsError, Stage, Technique
-from ..shading import camera_segment, light_transmittance, marched_optical_depth, surface_direct
+from ..shading import (camera_segment, light_transmittance, marched_optical_depth, sky_reflected, sky_scattered,
+                       surface_direct)
 from ..upload import SceneUploads, light_structs, lights_array, pinhole, sky_light_structs
 
 NAME = "raymarch"
@@ -69,13 +70,13 @@ class Sky:
     """The sky as a light: its directions (``upload.sky_lights``; empty: left out), where they
     start in the baked lattice (after the scene's lights) and its radiance (the background)."""
 
-    directions: wp.array(dtype=Light)
+    directions: wp.array(dtype=Emitter)
     first: int
     radiance: wp.vec3
 
 
 @wp.kernel
-def bake_light_transmittance(offset: int, m: Media, lights: wp.array(dtype=Light), st: MarchSettings,
+def bake_light_transmittance(offset: int, m: Media, lights: wp.array(dtype=Emitter), st: MarchSettings,
                              out: wp.array(dtype=wp.vec3)):
     """Transmittance through the media from each light to each lattice node (no surfaces)."""
     tid = wp.tid() + offset
@@ -122,8 +123,7 @@ def sky_in_scatter(m: Media, s: Surfaces, sky: Sky, x: wp.vec3, d: wp.vec3, st: 
         ph = in_scatter_at(m, x, wp.dot(d, wi))
         num += wp.cw_mul(ph, light_at(m, s, sky.first + k, x, wi, INF, st, baked, sky_steps(st)))
         den += ph
-    mean_t = wp.vec3(num[0] / wp.max(den[0], 1.0e-30), num[1] / wp.max(den[1], 1.0e-30), num[2] / wp.max(den[2], 1.0e-30))
-    return wp.cw_mul(wp.cw_mul(mean_t, scattering_at(m, x)), sky.radiance)
+    return wp.cw_mul(wp.cw_mul(sky_scattered(num, den), scattering_at(m, x)), sky.radiance)
 
 
 @wp.func
@@ -141,13 +141,11 @@ def sky_on_surface(m: Media, s: Surfaces, sky: Sky, p: wp.vec3, n: wp.vec3, wo: 
             csum += c
             acc += c * wp.cw_mul(brdf_eval(mat, n, wo, wi), light_at(m, s, sky.first + k, p + RAY_EPS * n, wi, INF,
                                                                      st, baked, sky_steps(st)))
-    if csum > 0.0:
-        return wp.cw_mul(acc, sky.radiance) * (PI / csum)
-    return wp.vec3(0.0)
+    return sky_reflected(wp.cw_mul(acc, sky.radiance), csum)
 
 
 @wp.kernel
-def march_single_scattering(offset: int, cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Light),
+def march_single_scattering(offset: int, cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Emitter),
                             sky: Sky, st: MarchSettings, baked: wp.array(dtype=wp.vec3), image: wp.array(dtype=wp.vec3)):
     """Per pixel: the march over the scene's lights and the sky's directions (none: the sky's
     light left out), then the surface or the background, attenuated."""

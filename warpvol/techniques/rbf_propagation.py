@@ -71,8 +71,8 @@ from ..media.rbf import CUTOFF
 from ..media.volume import sample_extinction
 from ..physics.brdf import brdf_eval
 from ..physics.constants import INF
-from ..physics.lights import DIRECTIONAL, Light, light_incident
-from ..physics.phase import Phase, phase_eval, phase_struct
+from ..physics.lights import DIRECTIONAL, Emitter, light_incident
+from ..physics.phase import PhaseParams, phase_eval, phase_struct
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Quality, Setting, Stage, Technique
 from ..scene.model import RBFMedium
@@ -155,7 +155,7 @@ class Volumes:
     opv: wp.array(dtype=wp.vec3)
     v: Volume
     albedo: wp.vec3
-    phase: Phase
+    phase: PhaseParams
     phase_table: wp.array(dtype=float)
 
 
@@ -203,7 +203,7 @@ def inject_rbfs(offset: int, centres: wp.array(dtype=wp.vec3), radii: wp.array(d
 
 
 @wp.func
-def light_flow(light: Light, x: wp.vec3) -> wp.vec3:
+def light_flow(light: Emitter, x: wp.vec3) -> wp.vec3:
     """Unit direction light travels at x (S -> X), zero at the light itself."""
     if light.kind == DIRECTIONAL:
         return light.direction
@@ -218,7 +218,7 @@ def light_flow(light: Light, x: wp.vec3) -> wp.vec3:
 
 
 @wp.func
-def anchor_offset(light: Light, g: wp.vec3i, v: Volume, i: int, j: int, k: int) -> wp.vec3i:
+def anchor_offset(light: Emitter, g: wp.vec3i, v: Volume, i: int, j: int, k: int) -> wp.vec3i:
     """Cell offset from the light's cell ``g`` (point, spot; clamped to [-1, n] per axis, see
     ``light_cells``) or, for a directional light, from the grid's most upwind corner, in the
     light's travel sense (non-negative on used axes)."""
@@ -232,7 +232,7 @@ def anchor_offset(light: Light, g: wp.vec3i, v: Volume, i: int, j: int, k: int) 
 
 
 @wp.func
-def axis_offset(light: Light, g: wp.vec3i, v: Volume, axis: int, i: int) -> int:
+def axis_offset(light: Emitter, g: wp.vec3i, v: Volume, axis: int, i: int) -> int:
     """``anchor_offset`` along one axis, for index ``i`` on it."""
     if light.kind == DIRECTIONAL:
         w = light.direction[axis]
@@ -242,7 +242,7 @@ def axis_offset(light: Light, g: wp.vec3i, v: Volume, axis: int, i: int) -> int:
 
 @wp.func
 def update_cell(l: int, cell: wp.vec3i, a: wp.vec3i, wave: int, ev: wp.array(dtype=wp.vec3), v: Volume,
-                light: Light, rule: int, tau_in: wp.array(dtype=wp.vec3), tau_out: wp.array(dtype=wp.vec3)):
+                light: Emitter, rule: int, tau_in: wp.array(dtype=wp.vec3), tau_out: wp.array(dtype=wp.vec3)):
     """One propagation step of light ``l`` at ``cell`` (i, j, k), ``a`` its offset from the light
     (``anchor_offset``): equation 6 (rule 0) or its corrected form, read from ``tau_in``."""
     i = cell[0]
@@ -296,7 +296,7 @@ def update_cell(l: int, cell: wp.vec3i, a: wp.vec3i, wave: int, ev: wp.array(dty
 
 
 @wp.kernel
-def propagate_optical_depth(offset: int, ev: wp.array(dtype=wp.vec3), v: Volume, lights: wp.array(dtype=Light),
+def propagate_optical_depth(offset: int, ev: wp.array(dtype=wp.vec3), v: Volume, lights: wp.array(dtype=Emitter),
                             light_cell: wp.array(dtype=wp.vec3i), rule: int, tau_in: wp.array(dtype=wp.vec3),
                             tau_out: wp.array(dtype=wp.vec3)):
     """A whole-grid Jacobi sweep: one propagation step for every (light, cell)."""
@@ -312,7 +312,7 @@ def propagate_optical_depth(offset: int, ev: wp.array(dtype=wp.vec3), v: Volume,
 
 
 @wp.kernel
-def propagate_shell(offset: int, ev: wp.array(dtype=wp.vec3), v: Volume, lights: wp.array(dtype=Light),
+def propagate_shell(offset: int, ev: wp.array(dtype=wp.vec3), v: Volume, lights: wp.array(dtype=Emitter),
                     light_cell: wp.array(dtype=wp.vec3i), shell_base: wp.array(dtype=int),
                     solve_axis: wp.array(dtype=int), rule: int, shell: int, tau: wp.array(dtype=wp.vec3)):
     """The wavefront's step ``shell``, in place: the cells at offset ``shell_base[light] +
@@ -356,7 +356,7 @@ def propagate_shell(offset: int, ev: wp.array(dtype=wp.vec3), v: Volume, lights:
 
 
 @wp.kernel
-def march_exact_optical_depth(offset: int, ev: wp.array(dtype=wp.vec3), v: Volume, lights: wp.array(dtype=Light),
+def march_exact_optical_depth(offset: int, ev: wp.array(dtype=wp.vec3), v: Volume, lights: wp.array(dtype=Emitter),
                               per_cell: int, out: wp.array(dtype=wp.vec3)):
     """Optical depth from each cell centre to each light through the EV, marched in
     ``per_cell`` midpoint steps per cell width (the yardstick for the propagation rules)."""
@@ -402,7 +402,7 @@ def surface_optical_depth(opv: wp.array(dtype=wp.vec3), base: int, v: Volume, p:
 
 
 @wp.kernel
-def march_volumes(offset: int, cam: RasterView, s: Surfaces, lights: wp.array(dtype=Light), vols: Volumes,
+def march_volumes(offset: int, cam: RasterView, s: Surfaces, lights: wp.array(dtype=Emitter), vols: Volumes,
                   steps: int, background: wp.vec3, image: wp.array(dtype=wp.vec3)):
     tid = wp.tid() + offset
     o, d = pixel_ray(cam, tid)
@@ -559,7 +559,7 @@ class RBFPropagation(Technique):
             self.opv = wp.zeros(1, dtype=wp.vec3, device=self.device)
         self.image = wp.empty(npix, dtype=wp.vec3, device=self.device)
         albedo = wp.vec3(*medium.albedo) if medium is not None else wp.vec3(0.0)
-        phase, table = Phase(), np.zeros(1, np.float32)
+        phase, table = PhaseParams(), np.zeros(1, np.float32)
         if medium is not None:  # the first medium's
             phase, table = phase_struct(medium.phase)
         phase_table = wp.array(table if len(table) else np.zeros(1, np.float32), dtype=float, device=self.device)

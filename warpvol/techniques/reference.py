@@ -50,7 +50,7 @@ from ..media.volume import (Media, depths_and_extinction, exact_media, free_flig
                             transmittance_estimate)
 from ..physics.brdf import brdf_eval
 from ..physics.constants import INF, PI, RAY_EPS, STREAM, TWO_PI
-from ..physics.lights import DIRECTIONAL, Light, light_incident
+from ..physics.lights import DIRECTIONAL, Emitter, light_incident
 from ..physics.phase import phase_eval, phase_sample
 from ..physics.sampling import (equiangular_pdf, equiangular_sample, exponential_pdf, orthonormal_basis,
                                 power_heuristic, sample_exponential)
@@ -97,7 +97,7 @@ class PathSettings:
 
 
 @wp.func
-def scatter_sample(m: Media, s: Surfaces, light: Light, o: wp.vec3, d: wp.vec3, ta: float, t: float,
+def scatter_sample(m: Media, s: Surfaces, light: Emitter, o: wp.vec3, d: wp.vec3, ta: float, t: float,
                    c: int, rng: wp.uint32) -> wp.vec3:
     """Unbiased estimate of T(ta, t) sigma_s(x) p(x) E_light(x) at x = o + t d."""
     x = o + t * d
@@ -115,7 +115,7 @@ def scatter_sample(m: Media, s: Surfaces, light: Light, o: wp.vec3, d: wp.vec3, 
 
 
 @wp.func
-def segment_irradiance(light: Light, o: wp.vec3, d: wp.vec3, ta: float, tb: float) -> float:
+def segment_irradiance(light: Emitter, o: wp.vec3, d: wp.vec3, ta: float, tb: float) -> float:
     """The light's unshadowed irradiance integrated along the segment [ta, tb] (grey): for a
     point or spot light I (theta_b - theta_a) / h, the integral of I / r^2 over a line at
     distance h (cone ignored); for a directional light E (tb - ta). What picking a light
@@ -129,7 +129,7 @@ def segment_irradiance(light: Light, o: wp.vec3, d: wp.vec3, ta: float, tb: floa
 
 
 @wp.func
-def segment_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Light), span: Span, t_ff: float, i_ff: int,
+def segment_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Emitter), span: Span, t_ff: float, i_ff: int,
                    exact: bool, c: int, rng: wp.uint32) -> wp.vec3:
     """Direct light scattered toward -d from the media on [ta, tb] from one light, chosen in
     proportion to ``segment_irradiance`` and weighted by one over that probability: each light
@@ -242,7 +242,7 @@ def sky_after_last(m: Media, s: Surfaces, o: wp.vec3, d: wp.vec3, background: wp
 
 
 @wp.func
-def trace_path(cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Light), background: wp.vec3,
+def trace_path(cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Emitter), background: wp.vec3,
                st: PathSettings, px: int, py: int, rng: wp.uint32) -> wp.vec3:
     """One camera path through pixel (px, py) (its centre, or a uniform point of it with
     ``pixel_area``): each segment's next collision by free flight through the media in front of
@@ -338,7 +338,7 @@ def trace_path(cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Li
 
 
 @wp.kernel
-def trace_paths(offset: int, cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Light),
+def trace_paths(offset: int, cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Emitter),
                 background: wp.vec3, st: PathSettings, accum: wp.array(dtype=wp.vec3d)):
     """Thread (slot, pixel) traces its share of the pass's ``st.spp`` samples of the pixel
     (``st.slots`` threads share a pixel) and adds their sum to ``accum[thread]`` in float64."""
