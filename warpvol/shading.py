@@ -61,6 +61,14 @@ def camera_segment(m: Media, s: Surfaces, o: wp.vec3, d: wp.vec3):
 
 
 @wp.func
+def reflected(mat: Material, n: wp.vec3, wo: wp.vec3, wi: wp.vec3, cos_l: float, e: wp.vec3, tr: wp.vec3) -> wp.vec3:
+    """What a surface (normal n, material mat) reflects toward wo of a light's irradiance e
+    (at normal incidence) arriving along wi through transmittance tr: f(wo, wi) e tr cos_l,
+    cos_l = n . wi > 0. Each technique finds e and tr its own way and sums this over its lights."""
+    return cos_l * wp.cw_mul(wp.cw_mul(brdf_eval(mat, n, wo, wi), e), tr)
+
+
+@wp.func
 def surface_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Emitter), p: wp.vec3, n: wp.vec3, wo: wp.vec3,
                    mat: Material, c: int, rng: wp.uint32, march_steps: int) -> wp.vec3:
     """Radiance reflected toward wo by direct light; ``n`` faces wo."""
@@ -71,7 +79,7 @@ def surface_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Emitter), p: wp
         cos_l = wp.dot(n, wi)
         if cos_l > 0.0 and (e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0):
             tr = light_transmittance(m, s, start, wi, dist, c, wp.rand_init(wp.randi(rng), STREAM), march_steps)
-            L += cos_l * wp.cw_mul(wp.cw_mul(brdf_eval(mat, n, wo, wi), e), tr)
+            L += reflected(mat, n, wo, wi, cos_l, e, tr)
     return L
 
 
@@ -105,7 +113,7 @@ def surface_through_maps(m: Media, sl: ShadowedLights, p: wp.vec3, n: wp.vec3, w
         wi, e, tau = light_arriving(m, sl, l, p, n, shadow_steps)
         cos_l = wp.dot(n, wi)
         if cos_l > 0.0:
-            L += cos_l * wp.cw_mul(brdf_eval(mat, n, wo, wi), wp.cw_mul(e, transmittance_rgb(tau + tau_view)))
+            L += reflected(mat, n, wo, wi, cos_l, e, transmittance_rgb(tau + tau_view))
     return L
 
 

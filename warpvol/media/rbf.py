@@ -62,6 +62,14 @@ def gaussian_on_ray(R: Gaussians, k: int, o: wp.vec3, d: wp.vec3):
 
 
 @wp.func
+def gaussian_chord(R: Gaussians, k: int, o: wp.vec3, d: wp.vec3, t0: float, t1: float):
+    """``gaussian_on_ray`` with its cut-off chord clipped to [t0, t1]: (tc, g, s, r, a, b);
+    a >= b: the ray's [t0, t1] misses it."""
+    tc, g, s, r = gaussian_on_ray(R, k, o, d)
+    return tc, g, s, r, wp.max(tc - s, t0), wp.min(tc + s, t1)
+
+
+@wp.func
 def gaussian_erf(t: float, tc: float, radius: float) -> wp.float64:
     """erf((t - tc) / (sqrt(2) radius)) in float64: differences of it lose nothing in the tails."""
     return wp.erf(wp.float64(t - tc) / (wp.float64(SQRT2) * wp.float64(radius)))
@@ -86,9 +94,7 @@ def rbf_optical_depth(R: Gaussians, o: wp.vec3, d: wp.vec3, t0: float, t1: float
     query = wp.bvh_query_ray(R.bvh, o, d)
     k = int(0)
     while wp.bvh_query_next(query, k, t1):
-        tc, g, s, r = gaussian_on_ray(R, k, o, d)
-        a = wp.max(tc - s, t0)
-        b = wp.min(tc + s, t1)
+        tc, g, s, r, a, b = gaussian_chord(R, k, o, d, t0, t1)
         if a < b:
             acc += g * r * SQRT_HALF_PI * erf_between(a, b, tc, s, r)
     return acc
@@ -139,9 +145,7 @@ def rbf_free_flight(R: Gaussians, o: wp.vec3, d: wp.vec3, t0: float, t1: float, 
     query = wp.bvh_query_ray(R.bvh, o, d)
     k = int(0)
     while wp.bvh_query_next(query, k, best):
-        tc, g, s, r = gaussian_on_ray(R, k, o, d)
-        a = wp.max(tc - s, t0)
-        b = wp.min(tc + s, best)
+        tc, g, s, r, a, b = gaussian_chord(R, k, o, d, t0, best)
         if a < b:
             # optical depth from a to t: K (erf(z_t) - erf(z_a)), K = sig g r sqrt(pi / 2);
             # at most 2K, so an exponential variate above that needs no erf at all

@@ -69,14 +69,13 @@ from ..geometry.mesh import Surfaces, occluded, surface_hit
 from ..geometry.raster import TILE, RasterView, TileLists, bin_spheres, pixel_ray, pixel_tile
 from ..media.lightpass import REPRESENTATIONS, LightMap, LightPass, optical_depth_to_light
 from ..media.particles import BlockCloud, Blocks, ParticleBuffers, Particles
-from ..physics.brdf import brdf_eval
 from ..physics.constants import INF, RAY_EPS
 from ..physics.lights import Emitter, light_incident
 from ..physics.phase import PhaseParams, PhaseFn, phase_eval, phase_fn, phase_struct, phase_toward
 from ..physics.transmittance import transmittance_rgb
 from ..pipeline import Bias, Quality, Setting, Stage, Technique
 from ..scene.procedural import split_blocks
-from ..shading import sky_reflected, sky_scattered
+from ..shading import reflected, sky_reflected, sky_scattered
 from ..upload import SceneUploads, check_particle_scene, particle_buffers, pinhole, sky_lights
 
 NAME = "depth_impostors"
@@ -321,7 +320,7 @@ def shade_surfaces(offset: int, cam: RasterView, s: Surfaces, cl: CloudLight, de
             cos_l = wp.dot(n, wi)
             if cos_l > 0.0 and not occluded(s, x + RAY_EPS * n, wi, dist):
                 tr = transmittance_rgb(optical_depth_to_light(cl.m, cl.P, -1, l, cl.lights[l], x))
-                L += cos_l * wp.cw_mul(wp.cw_mul(brdf_eval(mat, n, -d, wi), e), tr)
+                L += reflected(mat, n, -d, wi, cos_l, e, tr)
         acc = wp.vec3(0.0)
         csum = float(0.0)
         for l in range(cl.sky.shape[0]):
@@ -331,7 +330,7 @@ def shade_surfaces(offset: int, cam: RasterView, s: Surfaces, cl: CloudLight, de
                 csum += cos_l
                 if not occluded(s, x + RAY_EPS * n, wi, dist):
                     tr = transmittance_rgb(optical_depth_to_light(cl.m_sky, cl.P, -1, l, cl.sky[l], x))
-                    acc += cos_l * wp.cw_mul(wp.cw_mul(brdf_eval(mat, n, -d, wi), e), tr)
+                    acc += reflected(mat, n, -d, wi, cos_l, e, tr)
         L += sky_reflected(acc, csum)
     depth[tid] = wp.where(hit, t, INF)
     colour[tid] = L

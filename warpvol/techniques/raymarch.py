@@ -35,13 +35,12 @@ from ..geometry.mesh import Surfaces, occluded
 from ..geometry.raster import RasterView, view_ray
 from ..media.grid import lattice_trilinear_vec3
 from ..media.volume import Media, in_scatter_at, scattering_at, sigma_t_at
-from ..physics.brdf import brdf_eval
 from ..physics.constants import INF, RAY_EPS
 from ..physics.lights import Emitter, light_incident, step_mean_irradiance
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Bias, Quality, Setting, SettingsError, Stage, Technique
-from ..shading import (camera_segment, light_transmittance, marched_optical_depth, sky_reflected, sky_scattered,
-                       surface_direct)
+from ..shading import (camera_segment, light_transmittance, marched_optical_depth, reflected, sky_reflected,
+                       sky_scattered, surface_direct)
 from ..upload import SceneUploads, light_structs, lights_array, pinhole, sky_light_structs
 
 NAME = "raymarch"
@@ -139,8 +138,8 @@ def sky_on_surface(m: Media, s: Surfaces, sky: Sky, p: wp.vec3, n: wp.vec3, wo: 
         c = wp.dot(n, wi)
         if c > 0.0:
             csum += c
-            acc += c * wp.cw_mul(brdf_eval(mat, n, wo, wi), light_at(m, s, sky.first + k, p + RAY_EPS * n, wi, INF,
-                                                                     st, baked, sky_steps(st)))
+            tl = light_at(m, s, sky.first + k, p + RAY_EPS * n, wi, INF, st, baked, sky_steps(st))
+            acc += reflected(mat, n, wo, wi, c, wp.vec3(1.0), tl)  # the sky's radiance once, after the sum
     return sky_reflected(wp.cw_mul(acc, sky.radiance), csum)
 
 

@@ -69,13 +69,13 @@ from ..geometry.raster import RasterView, pixel_ray
 from ..media.grid import grid_trilinear
 from ..media.rbf import CUTOFF
 from ..media.volume import sample_extinction
-from ..physics.brdf import brdf_eval
 from ..physics.constants import INF
 from ..physics.lights import DIRECTIONAL, Emitter, light_incident
 from ..physics.phase import PhaseParams, phase_eval, phase_struct
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Quality, Setting, Stage, Technique
 from ..scene.model import RBFMedium
+from ..shading import reflected
 from ..upload import MediaBuffers, SceneUploads, medium_bounds, pinhole, scene_bounds
 
 NAME = "rbf_propagation"
@@ -444,7 +444,7 @@ def march_volumes(offset: int, cam: RasterView, s: Surfaces, lights: wp.array(dt
             cos_l = wp.dot(nf, wi)
             if cos_l > 0.0:
                 tl = transmittance_rgb(surface_optical_depth(opv, l * cells, v, p, wi, dist))
-                L += cos_l * wp.cw_mul(tr, wp.cw_mul(brdf_eval(s.material[face], nf, -d, wi), wp.cw_mul(e, tl)))
+                L += wp.cw_mul(tr, reflected(s.material[face], nf, -d, wi, cos_l, e, tl))
     else:
         L += wp.cw_mul(tr, background)
     image[tid] = L
