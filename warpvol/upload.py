@@ -5,7 +5,7 @@ and know nothing of scenes; everything that reads a ``Scene`` to build them is h
 ``pinhole`` (Camera -> PinholeCamera), ``light_array`` (lights -> Emitter array),
 ``SurfaceBuffers`` (surfaces -> one wp.Mesh and materials), ``MediaBuffers`` (media ->
 the Media struct, from each kind's own buffers: ``grid_buffers``, ``gaussian_buffers``,
-``particle_medium_buffers``), ``medium_bounds`` / ``scene_bounds``, and
+``particle_buffers``), ``medium_bounds`` / ``scene_bounds``, and
 ``extinction_volume`` (the public sampler of a scene's sigma_t).
 
 ``SceneUploads`` owns the ``Media``, ``Surfaces`` and ``Emitter`` buffers and declares one
@@ -146,14 +146,14 @@ def check_particle_scene(technique: str, scene: Scene) -> None:
         raise SettingsError(f"{technique}: the particle media must share one phase function (found {len(phases)})")
 
 
-def particle_buffers(scene: Scene, device, **options) -> ParticleBuffers:
-    """All of the scene's particle media as one cloud on the device (per particle: centre,
+def particle_buffers(media: list, device, **options) -> ParticleBuffers:
+    """Particle media (a scene's, or one) as one cloud on the device (per particle: centre,
     radius, sigma_t, albedo; media in order); ``options`` go to ``ParticleBuffers``."""
-    pos = np.concatenate([np.asarray(m.positions, np.float32).reshape(-1, 3) for m in scene.media])
-    counts = [len(m.positions) for m in scene.media]
+    pos = np.concatenate([np.asarray(m.positions, np.float32).reshape(-1, 3) for m in media])
+    counts = [len(m.positions) for m in media]
     rep = lambda values: np.repeat(np.asarray(values, np.float32), counts, axis=0)  # noqa: E731
-    return ParticleBuffers(pos, rep([m.radius for m in scene.media]), rep([m.sigma_t for m in scene.media]),
-                           rep([m.albedo for m in scene.media]), device, **options)
+    return ParticleBuffers(pos, rep([m.radius for m in media]), rep([m.sigma_t for m in media]),
+                           rep([m.albedo for m in media]), device, **options)
 
 
 class SurfaceBuffers:
@@ -261,13 +261,6 @@ def gaussian_buffers(m: RBFMedium, device) -> tuple[GaussianBuffers, float]:
             rbf_majorant(m.centers, m.radius if same else radii, amplitudes=amps))
 
 
-def particle_medium_buffers(m: ParticleMedium, device) -> ParticleBuffers:
-    """A particle medium as a cloud of its own, as every particle kernel reads one."""
-    n = len(m.positions)
-    return ParticleBuffers(m.positions, np.full(n, m.radius), np.tile(m.sigma_t, (n, 1)), np.tile(m.albedo, (n, 1)),
-                           device)
-
-
 class MediaBuffers:
     """Owns the device buffers behind a ``Media`` struct: each medium's own (``grids``,
     ``gaussians``, ``clouds``: the kinds' buffers, in the order of the scene's media)."""
@@ -316,7 +309,7 @@ class MediaBuffers:
             else:
                 kinds.append(int(PARTICLES))
                 index[-1] = len(self.clouds)
-                self.clouds.append(particle_medium_buffers(m, device))
+                self.clouds.append(particle_buffers([m], device))  # a cloud of its own
                 sigma.append(tuple(m.sigma_t))
                 majorants.append(particle_majorant(m.positions, m.radius) * np.asarray(m.sigma_t))
         count = len(kinds)

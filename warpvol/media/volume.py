@@ -64,18 +64,12 @@ class Media:
 
 
 @wp.func
-def medium_inside(m: Media, i: int, x: wp.vec3) -> bool:
-    """Whether x lies in homogeneous medium i (a box or a sphere)."""
-    return shape_inside(m.kind[i] == BOX, m.bmin[i], m.bmax[i], m.center[i], m.radius[i], x)
-
-
-@wp.func
 def medium_density(m: Media, i: int, x: wp.vec3) -> float:
     """The density factor of a homogeneous, grid or RBF medium i at x (sigma_t = it times
     m.sigma[i]); particle media have per-sphere sigma_t (``medium_sigma_t``)."""
     kind = m.kind[i]
     if kind == BOX or kind == SPHERE:
-        return wp.where(medium_inside(m, i, x), 1.0, 0.0)
+        return wp.where(shape_inside(kind == BOX, m.bmin[i], m.bmax[i], m.center[i], m.radius[i], x), 1.0, 0.0)
     if kind == GRID:
         return grid_density(m.grids[m.index[i]], x)
     if not inside_box(x, m.bmin[i], m.bmax[i]):

@@ -532,7 +532,7 @@ class DepthImpostors(Technique):
                 tpl_of.append(np.full(len(p), t, np.int32))
                 particle_of.append(np.arange(base, base + len(p), dtype=np.int32))
             base += len(p)
-        self._cloud = particle_buffers(self.scene, device, hash_grid=False, bvh=self.settings["light_pass"] == 0)
+        self._cloud = particle_buffers(self.scene.media, device, hash_grid=False, bvh=self.settings["light_pass"] == 0)
         offsets_np = np.concatenate(offsets).astype(np.float64)
         centres = np.concatenate(centres)
         tpl_of = np.concatenate(tpl_of)

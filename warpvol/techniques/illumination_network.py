@@ -544,7 +544,7 @@ class IlluminationNetwork(Technique):
         """Particles to the device, per-particle extinction, phase matrix, and V with alpha:
         every direction, or with ``refresh = k`` and an unchanged layout the next k."""
         s, device = self.settings, self.device
-        self._particles = cloud = particle_buffers(self.scene, device)
+        self._particles = cloud = particle_buffers(self.scene.media, device)
         pos, radius, sigma = cloud.centres, cloud.radius, cloud.sigma_t
         n = len(pos)
         D = s["directions"]
