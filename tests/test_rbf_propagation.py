@@ -133,6 +133,32 @@ def test_light_inside_a_dense_rbf_and_a_single_cell_grid(device):
     assert np.isfinite(one.render().image).all() and one.arrays()["optical_depth"].shape == (1, 1, 1, 1, 3)
 
 
+LIGHTS = [POINT, {"type": "point", "position": [-0.6, -0.3, 0.5], "intensity": [2.0, 1.0, 0.5]},
+          {"type": "directional", "direction": [0.3, -1.0, -0.2], "irradiance": 0.8},
+          {"type": "spot", "position": [0.5, 0.8, -0.4], "direction": [-0.5, -1.0, 0.4], "intensity": 4.0,
+           "inner_angle": 25.0, "outer_angle": 40.0},
+          {"type": "point", "position": [0.7, 0.0, 0.6], "intensity": 1.5}]
+
+
+def test_the_packed_opv_keeps_each_light_its_own(device):
+    """The OPV holds a cell's lights side by side (the paper's four lights per texel) and the
+    march finds a sample's corners once for all of them. Light is additive: with five lights
+    (more than one packed group of four; point, directional and spot) the image is the sum of
+    the five one-light images and each light's OPV is its one-light OPV, to float32 rounding
+    of sums of five (1e-5 of the largest pixel)."""
+    media = [rbf([[0.0, 0.0, 0.0], [0.4, -0.3, 0.2], [-0.3, 0.4, -0.2]], 0.3)]
+    together = renderer(box_scene(media, LIGHTS), device, grid=10)
+    alone = [renderer(box_scene(media, [light]), device, grid=10) for light in LIGHTS]
+    image = together.render().image
+    total = sum(r.render().image for r in alone)
+    assert total.max() > 0.1 and all(r.render().image.max() > 0.0 for r in alone)
+    np.testing.assert_allclose(image, total, rtol=0, atol=1e-5 * total.max())
+    tau = together.arrays()["optical_depth"]
+    assert tau.shape == (len(LIGHTS), 10, 10, 10, 3)
+    for l, r in enumerate(alone):
+        np.testing.assert_array_equal(tau[l], r.arrays()["optical_depth"][0])
+
+
 # issue 12: a plane's zero-thickness bounds sized the volume (NaN images), and a flat medium or a
 # far light planned millions of wavefront launches
 

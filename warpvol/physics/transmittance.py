@@ -20,6 +20,10 @@ def transmittance(tau: float) -> float:
 
 @wp.func
 def transmittance_rgb(tau: wp.vec3) -> wp.vec3:
+    """``transmittance`` per channel; one exp where the three are equal (a grey medium, the
+    common case), the same numbers at a third of the exps."""
+    if tau[0] == tau[1] and tau[1] == tau[2]:
+        return wp.vec3(transmittance(tau[0]))
     return wp.vec3(transmittance(tau[0]), transmittance(tau[1]), transmittance(tau[2]))
 
 

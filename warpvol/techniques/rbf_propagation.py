@@ -48,7 +48,11 @@ fixed-step ray march that reads both (equations 5, 8-10). Stages:
   volume (no medium lies outside it), or nothing when that path misses the volume.
 
 The EV and OPV store RGB (an RGB sigma_t propagates per channel), one OPV entry per light
-and cell; the first medium's albedo and phase function serve the whole volume.
+and cell. A cell's lights lie side by side, as the paper packs four lights in the RGBA of one
+texel: the march finds a sample's trilinear corners and weights once (``cell_corners``) and
+reads the EV and every light's optical depth there (``cell_blend``), so a light adds its
+eight neighbouring reads, its falloff and its phase function to a step, not a lookup of
+its own. The first medium's albedo and phase function serve the whole volume.
 
 Leaves out (``frame.leaves_out``): multiple scattering, and the sky's light (the
 background) scattered in the medium or reflected by surfaces.
@@ -63,10 +67,10 @@ import warp as wp
 
 from .. import device as dev
 from ..geometry.camera import camera_view
-from ..geometry.intersect import ray_box
+from ..geometry.intersect import inside_box, ray_box
 from ..geometry.mesh import Surfaces, surface_hit
 from ..geometry.raster import RasterView, pixel_ray
-from ..media.grid import grid_trilinear
+from ..media.grid import grid_corners, grid_trilinear, trilinear_blend
 from ..media.rbf import CUTOFF
 from ..media.volume import sample_extinction
 from ..physics.constants import INF
@@ -148,8 +152,8 @@ class Volume:
 @wp.struct
 class Volumes:
     """What the march reads: the extinction volume (EV) and the per-light optical depth
-    volumes (OPV, light l's cells from l n^3) over one ``Volume``, and the medium's albedo and
-    phase function (the first medium's)."""
+    volumes (OPV, a cell's lights side by side: light l of cell c at c L + l for L lights) over
+    one ``Volume``, and the medium's albedo and phase function (the first medium's)."""
 
     ev: wp.array(dtype=wp.vec3)
     opv: wp.array(dtype=wp.vec3)
@@ -173,6 +177,40 @@ def cell_index(v: Volume, i: int, j: int, k: int) -> int:
 def volume_lookup(values: wp.array(dtype=wp.vec3), base: int, v: Volume, x: wp.vec3) -> wp.vec3:
     """Trilinear between cell centres, clamped at the outer half cells; 0 outside the grid."""
     return grid_trilinear(values, base, v.n, v.lo, v.hi, x)
+
+
+@wp.func
+def cell_corners(v: Volume, x: wp.vec3):
+    """Where a trilinear lookup at x reads, found once for the EV and every light's OPV (they
+    share the grid): (the lower corner's cell, the cell steps to the upper corner along x, y
+    and z, the upper corner's weights, whether x is in the grid)."""
+    a, b, t = grid_corners(v.n, v.lo, v.hi, x)
+    step = wp.vec3i(b[0] - a[0], (b[1] - a[1]) * v.n[0], (b[2] - a[2]) * v.n[0] * v.n[1])
+    return cell_index(v, a[0], a[1], a[2]), step, t, inside_box(x, v.lo, v.hi)
+
+
+@wp.func
+def cell_blend(values: wp.array(dtype=wp.vec3), stride: int, k: int, first: int, step: wp.vec3i,
+               t: wp.vec3) -> wp.vec3:
+    """The trilinear blend at the corners ``cell_corners`` found, of entry k of ``stride`` per
+    cell: the EV is one entry per cell; the OPV holds a cell's lights side by side (entry l of
+    ``lights``), as the paper packs four lights in a texel's RGBA, so one sample's lights
+    read neighbouring memory."""
+    c0 = first * stride + k
+    dx = step[0] * stride
+    dy = step[1] * stride
+    dz = step[2] * stride
+    return trilinear_blend(values[c0], values[c0 + dx], values[c0 + dy], values[c0 + dx + dy], values[c0 + dz],
+                           values[c0 + dx + dz], values[c0 + dy + dz], values[c0 + dx + dy + dz], t)
+
+
+@wp.func
+def opv_lookup(opv: wp.array(dtype=wp.vec3), lights: int, l: int, v: Volume, x: wp.vec3) -> wp.vec3:
+    """Light l's optical depth at x from the OPV (0 outside the grid), as ``volume_lookup``."""
+    first, step, t, inside = cell_corners(v, x)
+    if not inside:
+        return wp.vec3(0.0)
+    return cell_blend(opv, lights, l, first, step, t)
 
 
 @wp.kernel
@@ -253,7 +291,7 @@ def update_cell(l: int, cell: wp.vec3i, a: wp.vec3i, wave: int, ev: wp.array(dty
     x = cell_centre(v, i, j, k)
     sig = ev[c]
     w = light_flow(light, x)
-    base = l * cells
+    lights = tau_out.shape[0] / cells  # the OPV: cells x lights, a cell's lights side by side
     wsum = float(0.0)
     acc = wp.vec3(0.0)
     for axis in range(3):
@@ -277,7 +315,7 @@ def update_cell(l: int, cell: wp.vec3i, a: wp.vec3i, wave: int, ev: wp.array(dty
                 weight = weight / v.h[axis]
             t_n = wp.vec3(0.0)  # outside the grid: no medium, no optical depth
             if ni >= 0 and nj >= 0 and nk >= 0 and ni < v.n[0] and nj < v.n[1] and nk < v.n[2]:
-                t_n = tau_in[base + cell_index(v, ni, nj, nk)]
+                t_n = tau_in[cell_index(v, ni, nj, nk) * lights + l]
             elif rule == 1:
                 weight = 2.0 * weight  # T = 0 holds on the grid's face, half a cell away
             acc += weight * t_n
@@ -292,7 +330,7 @@ def update_cell(l: int, cell: wp.vec3i, a: wp.vec3i, wave: int, ev: wp.array(dty
         out = (acc + sig) / wsum
     else:
         out = sig + acc / wsum
-    tau_out[base + c] = out
+    tau_out[c * lights + l] = out
 
 
 @wp.kernel
@@ -382,7 +420,7 @@ def march_exact_optical_depth(offset: int, ev: wp.array(dtype=wp.vec3), v: Volum
 
 
 @wp.func
-def surface_optical_depth(opv: wp.array(dtype=wp.vec3), base: int, v: Volume, p: wp.vec3, wi: wp.vec3,
+def surface_optical_depth(opv: wp.array(dtype=wp.vec3), lights: int, l: int, v: Volume, p: wp.vec3, wi: wp.vec3,
                           dist: float) -> wp.vec3:
     """Optical depth from a surface point p to a light (direction wi, distance dist) from the
     OPV. On the volume (within a rounding tolerance) it is read at p, clamped in; outside, no
@@ -391,14 +429,14 @@ def surface_optical_depth(opv: wp.array(dtype=wp.vec3), base: int, v: Volume, p:
     the nearest face instead would stretch the face's shadows over every surface beyond it.)"""
     pc = wp.vec3(wp.clamp(p[0], v.lo[0], v.hi[0]), wp.clamp(p[1], v.lo[1], v.hi[1]), wp.clamp(p[2], v.lo[2], v.hi[2]))
     if wp.length(p - pc) <= 1.0e-4 * wp.length(v.hi - v.lo):
-        return volume_lookup(opv, base, v, pc)
+        return opv_lookup(opv, lights, l, v, pc)
     a, b = ray_box(p, wi, v.lo, v.hi)
     ta = wp.max(a, 0.0)
     if ta > wp.min(b, dist):
         return wp.vec3(0.0)
     q = p + ta * wi
     q = wp.vec3(wp.clamp(q[0], v.lo[0], v.hi[0]), wp.clamp(q[1], v.lo[1], v.hi[1]), wp.clamp(q[2], v.lo[2], v.hi[2]))
-    return volume_lookup(opv, base, v, q)
+    return opv_lookup(opv, lights, l, v, q)
 
 
 @wp.kernel
@@ -416,7 +454,7 @@ def march_volumes(offset: int, cam: RasterView, s: Surfaces, lights: wp.array(dt
     a, b = ray_box(o, d, v.lo, v.hi)
     ta = wp.max(a, 0.0)
     tb = wp.min(b, t_surf)
-    cells = v.n[0] * v.n[1] * v.n[2]
+    n_lights = lights.shape[0]
     L = wp.vec3(0.0)
     tr = wp.vec3(1.0)
     if ta < tb:
@@ -426,12 +464,15 @@ def march_volumes(offset: int, cam: RasterView, s: Surfaces, lights: wp.array(dt
             t0 = ta + float(q) * dt
             seg = wp.min(dt, tb - t0)
             x = o + (t0 + 0.5 * seg) * d
-            sig = volume_lookup(ev, 0, v, x)
+            first, step, t, inside = cell_corners(v, x)  # once for the EV and every light
+            sig = wp.vec3(0.0)
+            if inside:
+                sig = cell_blend(ev, 1, 0, first, step, t)
             if sig[0] > 0.0 or sig[1] > 0.0 or sig[2] > 0.0:
                 li = wp.vec3(0.0)
-                for l in range(lights.shape[0]):
+                for l in range(n_lights):
                     wi, dist, e = light_incident(lights[l], x)
-                    tl = transmittance_rgb(volume_lookup(opv, l * cells, v, x))
+                    tl = transmittance_rgb(cell_blend(opv, n_lights, l, first, step, t))
                     li += phase_eval(phase, phase_table, wp.dot(d, wi)) * wp.cw_mul(e, tl)
                 f = step_integral_rgb(sig, seg)
                 L += wp.cw_mul(wp.cw_mul(tr, wp.cw_mul(wp.cw_mul(sig, albedo), li)), f)
@@ -439,11 +480,11 @@ def march_volumes(offset: int, cam: RasterView, s: Surfaces, lights: wp.array(dt
     if hit:
         nf = wp.where(wp.dot(n, d) < 0.0, n, -n)
         p = o + t_surf * d
-        for l in range(lights.shape[0]):  # equation 10
+        for l in range(n_lights):  # equation 10
             wi, dist, e = light_incident(lights[l], p)
             cos_l = wp.dot(nf, wi)
             if cos_l > 0.0:
-                tl = transmittance_rgb(surface_optical_depth(opv, l * cells, v, p, wi, dist))
+                tl = transmittance_rgb(surface_optical_depth(opv, n_lights, l, v, p, wi, dist))
                 L += wp.cw_mul(tr, reflected(s.material[face], nf, -d, wi, cos_l, e, tl))
     else:
         L += wp.cw_mul(tr, background)
@@ -589,7 +630,7 @@ class RBFPropagation(Technique):
         out = {"bounds": (tuple(self.volume.lo), tuple(self.volume.hi)),
                "extinction": self.ev.numpy().reshape(n, n, n, 3)}
         if self.scene.lights and self.opv is not None and self.opv.shape[0] == len(self.scene.lights) * n**3:
-            out["optical_depth"] = self.opv.numpy().reshape(len(self.scene.lights), n, n, n, 3)
+            out["optical_depth"] = np.moveaxis(self.opv.numpy().reshape(n, n, n, len(self.scene.lights), 3), 3, 0)
             if for_view:
                 out["optical_depth_exact"] = self.exact_optical_depth()
         return out
