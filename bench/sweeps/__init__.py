@@ -65,7 +65,7 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
     Sweep("rbf-table2", "Giroud & Biri 2011 Table 2: grid 15..40, 1 light precomputed (P: only the march runs) and 1/2/4/8 "
           "dynamic lights (medium and lights change every frame), rbf-thick-fog's 1000 RBFs, 800x600",
           "rbf_propagation", "paper", rbf_propagation.table2_grid, rbf_propagation.table2, paper=("rbf_propagation", "table2"),
-          figure=rbf_propagation.table2_fps),
+          figure=rbf_propagation.table2_fps, note=rbf_propagation.TABLE2_NOTE),
     Sweep("rbf-table3", "Giroud & Biri 2011 Table 3: 1..27 000 RBFs at grid 20, one light, dynamic (all stages) and static "
           "(only the march), 800x600",
           "rbf_propagation", "paper", rbf_propagation.table3_grid, rbf_propagation.table3, paper=("rbf_propagation", "table3"),
