@@ -47,7 +47,7 @@ one block of b particles, so a frame renders the block once (b) and then its ins
 * ``surfaces`` (reads the surfaces, camera): per pixel the nearest surface (its depth: the
   paper's depth buffer) and its colour lit through the light pass (the cloud's shadow) and
   past the other surfaces.
-* ``gather`` (reads the camera, background): instances listed per 16 x 16 pixel tile near
+* ``gather`` (reads the camera, background): instances listed per 8 x 8 pixel tile near
   to far (``bin_spheres``) and composited front to back: an instance adds T alpha L and
   scales T by 1 - alpha. Objects in clouds (section 2.4): where the surface depth falls in
   a block's [front, back] interval along the pixel ray, its optical depth is scaled by the
@@ -66,7 +66,7 @@ from .. import device as dev
 from ..geometry.camera import camera_view
 from ..geometry.intersect import ray_sphere
 from ..geometry.mesh import Surfaces, occluded, surface_hit
-from ..geometry.raster import TILE, RasterView, TileLists, bin_spheres, pixel_ray, pixel_tile
+from ..geometry.raster import SPHERE_TILE, RasterView, TileLists, bin_spheres, pixel_ray, pixel_tile
 from ..media.lightpass import REPRESENTATIONS, LightMap, LightPass, optical_depth_to_light
 from ..media.particles import BlockCloud, Blocks, ParticleBuffers, Particles
 from ..physics.constants import INF, RAY_EPS
@@ -703,12 +703,16 @@ class DepthImpostors(Technique):
         if not self.scene.surfaces:
             self.surf_depth = wp.full(n, INF, dtype=float, device=device)
             self.surf_colour = wp.zeros(n, dtype=wp.vec3, device=device)
-        centres = self.blocks.centre.numpy().astype(np.float64)
-        reach = self.blocks.reach.numpy().astype(np.float64)
+        centres, reach, textured = self._inst_host
+        # a textured instance's impostor is read in its plane wherever one of the four texels
+        # a pixel blends may be opaque: within R of the centre (the texels sample the block's
+        # spheres, all within its reach R) plus a texel's diagonal, 2 sqrt(2) R / T
+        reach = np.where(textured, reach * (1.0 + 2.0 * np.sqrt(2.0) / self.impostors.res), reach)
         eye = np.asarray(cam.origin, np.float64)
         z_far = float(np.max(np.linalg.norm(centres - eye, axis=1) + reach)) if len(centres) else 1.0
-        tl = bin_spheres(view, self.blocks.centre, self.blocks.reach, z_far, device)
-        self.gather_tests = (tl.values.shape[0] // 2) * TILE * TILE
+        tl = bin_spheres(view, self.blocks.centre, wp.array(reach.astype(np.float32), dtype=float, device=device), z_far,
+                         device)
+        self.gather_tests = (tl.values.shape[0] // 2) * SPHERE_TILE * SPHERE_TILE
         self.image = wp.empty(n, dtype=wp.vec3, device=device)
         shaded = Shaded()
         shaded.texels, shaded.first, shaded.particles = self.texel_radiance, self._first, self.particle_radiance

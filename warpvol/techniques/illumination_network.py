@@ -63,7 +63,7 @@ directions, between particles that see each other along them. Stages:
   ``tolerance`` and then stays cached until its inputs change.
 * ``splat`` (reads the camera): each particle's radiance toward the camera, in-scattered
   from the D incoming radiances plus its direct light with the phase function at the
-  camera direction, composited front to back over 16 x 16 pixel tiles (particles sorted
+  camera direction, composited front to back over 8 x 8 pixel tiles (particles sorted
   by tile, then depth). A particle's footprint is its sphere's own opacity along the pixel
   ray, 1 - exp(-sigma_t chord): smooth, zero at the rim, and exact for the transmittance
   of overlapping spheres. The background shows through. A pixel stops once its
