@@ -42,8 +42,9 @@ NEAR = wp.constant(1.0e-6)  # a perspective view clips triangles to depth > NEAR
 BOX_SLACK = wp.constant(1.0e-3)  # pixels: a triangle's box is widened by this much for rounding
 EDGE_SLACK = wp.constant(1.0e-6)  # barycentric slack: a pixel centre on a shared edge is covered by both
 TILE = wp.constant(16)  # pixels per side of the pieces a large triangle is split into (tiled rasterising)
-SPHERE_TILE = wp.constant(8)  # pixels per side of the tiles spheres are listed in (bin_spheres): 16 lists
-# sprites a few pixels across in 4x the pixels they cover, 4 sorts more pairs than it saves
+# pixels per side of the tiles spheres are listed in (bin_spheres): 16 lists sprites a few pixels
+# across in 4x the pixels they cover; 4 sorts more pairs than it saves
+SPHERE_TILE = wp.constant(8)
 
 
 @wp.struct

@@ -70,7 +70,7 @@ from ..geometry.camera import camera_view
 from ..geometry.intersect import inside_box, ray_box
 from ..geometry.mesh import Surfaces, surface_hit
 from ..geometry.raster import RasterView, pixel_ray
-from ..media.grid import grid_corners, grid_trilinear, trilinear_blend
+from ..media.grid import grid_corners, trilinear_blend
 from ..media.rbf import CUTOFF
 from ..media.volume import sample_extinction
 from ..physics.constants import INF
@@ -174,12 +174,6 @@ def cell_index(v: Volume, i: int, j: int, k: int) -> int:
 
 
 @wp.func
-def volume_lookup(values: wp.array(dtype=wp.vec3), base: int, v: Volume, x: wp.vec3) -> wp.vec3:
-    """Trilinear between cell centres, clamped at the outer half cells; 0 outside the grid."""
-    return grid_trilinear(values, base, v.n, v.lo, v.hi, x)
-
-
-@wp.func
 def cell_corners(v: Volume, x: wp.vec3):
     """Where a trilinear lookup at x reads, found once for the EV and every light's OPV (they
     share the grid): (the lower corner's cell, the cell steps to the upper corner along x, y
@@ -205,12 +199,13 @@ def cell_blend(values: wp.array(dtype=wp.vec3), stride: int, k: int, first: int,
 
 
 @wp.func
-def opv_lookup(opv: wp.array(dtype=wp.vec3), lights: int, l: int, v: Volume, x: wp.vec3) -> wp.vec3:
-    """Light l's optical depth at x from the OPV (0 outside the grid), as ``volume_lookup``."""
+def volume_lookup(values: wp.array(dtype=wp.vec3), stride: int, k: int, v: Volume, x: wp.vec3) -> wp.vec3:
+    """Entry k of ``stride`` per cell (the EV: 1 and 0; the OPV: the lights and the light),
+    trilinear between cell centres, clamped at the outer half cells; 0 outside the grid."""
     first, step, t, inside = cell_corners(v, x)
     if not inside:
         return wp.vec3(0.0)
-    return cell_blend(opv, lights, l, first, step, t)
+    return cell_blend(values, stride, k, first, step, t)
 
 
 @wp.kernel
@@ -415,7 +410,7 @@ def march_exact_optical_depth(offset: int, ev: wp.array(dtype=wp.vec3), v: Volum
         steps = int(wp.min(wp.ceil(t1 / dt), float(cap)))
         dt = t1 / float(steps)
         for s in range(steps):
-            tau += volume_lookup(ev, 0, v, x + (float(s) + 0.5) * dt * wi) * dt
+            tau += volume_lookup(ev, 1, 0, v, x + (float(s) + 0.5) * dt * wi) * dt
     out[tid] = tau
 
 
@@ -429,14 +424,14 @@ def surface_optical_depth(opv: wp.array(dtype=wp.vec3), lights: int, l: int, v: 
     the nearest face instead would stretch the face's shadows over every surface beyond it.)"""
     pc = wp.vec3(wp.clamp(p[0], v.lo[0], v.hi[0]), wp.clamp(p[1], v.lo[1], v.hi[1]), wp.clamp(p[2], v.lo[2], v.hi[2]))
     if wp.length(p - pc) <= 1.0e-4 * wp.length(v.hi - v.lo):
-        return opv_lookup(opv, lights, l, v, pc)
+        return volume_lookup(opv, lights, l, v, pc)
     a, b = ray_box(p, wi, v.lo, v.hi)
     ta = wp.max(a, 0.0)
     if ta > wp.min(b, dist):
         return wp.vec3(0.0)
     q = p + ta * wi
     q = wp.vec3(wp.clamp(q[0], v.lo[0], v.hi[0]), wp.clamp(q[1], v.lo[1], v.hi[1]), wp.clamp(q[2], v.lo[2], v.hi[2]))
-    return opv_lookup(opv, lights, l, v, q)
+    return volume_lookup(opv, lights, l, v, q)
 
 
 @wp.kernel
