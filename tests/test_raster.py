@@ -8,7 +8,8 @@ import pytest
 import warp as wp
 
 from warpvol.geometry.mesh import Surfaces
-from warpvol.geometry.raster import KEY_RANGE, NO_HIT, RasterView, rasterise_visible, split_long_edges
+from warpvol.geometry.raster import (KEY_RANGE, NO_HIT, SPHERE_TILE, RasterView, bin_spheres, rasterise_visible,
+                                     split_long_edges)
 from warpvol.geometry.shadowmap import CUBE, ORTHOGRAPHIC, PERSPECTIVE, ShadowMap, shadow_map_depths, texels
 
 # a unit box's six faces (12 triangles) centred at (0, 0, -3)
@@ -119,3 +120,53 @@ def test_shadow_maps_rasterised_equal_ray_cast(device):
     assert agree > 0.995
     both = finite & (untiled < 1e30)
     np.testing.assert_allclose(untiled[both], cast[both], rtol=1e-4, atol=1e-5)
+
+
+def _listed(tl, n_tiles: int) -> list[set]:
+    first, last, values = tl.first.numpy(), tl.last.numpy(), tl.values.numpy()
+    return [set(values[first[k]:last[k]].tolist()) for k in range(n_tiles)]
+
+
+def test_binned_spheres_list_every_sphere_a_pixel_ray_meets(device):
+    """bin_spheres is conservative: every sphere a pixel's ray meets (closed-form ray-sphere
+    test in NumPy) is in the list of the pixel's tile. Spheres of every kind: small and
+    large, across the image's edge, around the eye, straddling it and wholly behind it."""
+    rng = np.random.default_rng(5)
+    v = camera(width=72, height=40)
+    centres = np.concatenate([rng.uniform([-3, -2, -8], [3, 2, -1], (60, 3)),
+                              [[0.0, 0.0, 0.2], [0.5, 0.0, 0.3], [0.0, 0.0, 3.0]]]).astype(np.float32)
+    radius = np.concatenate([rng.uniform(0.02, 0.8, 60), [0.5, 0.4, 0.6]]).astype(np.float32)
+    tl = bin_spheres(v, wp.array(centres, dtype=wp.vec3, device=device), wp.array(radius, dtype=float, device=device),
+                     20.0, device)
+    tiles_x = -(-v.width // SPHERE_TILE)
+    listed = _listed(tl, tiles_x * -(-v.height // SPHERE_TILE))
+    d = pixel_dirs(v).reshape(-1, 3)
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    tc = d @ centres.T  # origin at 0: |c - (d . c) d|^2 <= r^2 and the chord's far end in front
+    miss2 = (centres ** 2).sum(1)[None] - tc ** 2
+    hit = (miss2 <= radius[None] ** 2) & (tc + np.sqrt(np.maximum(radius[None] ** 2 - miss2, 0.0)) > 0.0)
+    assert hit.any(axis=0).sum() > 40
+    for p, s in zip(*np.nonzero(hit)):
+        j, i = divmod(int(p), v.width)
+        assert s in listed[(j // SPHERE_TILE) * tiles_x + i // SPHERE_TILE], (p, s)
+
+
+def test_binned_sphere_skips_its_rectangles_corners(device):
+    """A sphere on the view axis projects to a disc of radius rho = f tan(asin(r / d)) pixels;
+    bin_spheres lists only tiles whose centre lies within rho plus the tile's half diagonal
+    (their cones meet it), not the whole bounding rectangle of tiles."""
+    v = camera(width=128, height=128, fov_y=60.0)
+    r, dist = 0.3, 3.0
+    tl = bin_spheres(v, wp.array([[0.0, 0.0, -dist]], dtype=wp.vec3, device=device),
+                     wp.array([r], dtype=float, device=device), 10.0, device)
+    tiles = -(-v.width // SPHERE_TILE)
+    listed = [k for k, s in enumerate(_listed(tl, tiles * tiles)) if s]
+    f = 0.5 * v.height / math.tan(math.radians(30.0))
+    rho = f * math.tan(math.asin(r / dist))
+    centre = np.array([(k % tiles + 0.5) * SPHERE_TILE - 64.0 for k in listed]), \
+        np.array([(k // tiles + 0.5) * SPHERE_TILE - 64.0 for k in listed])
+    far = np.hypot(*centre)
+    assert far.max() <= rho + SPHERE_TILE / math.sqrt(2.0) + 1.0, (far.max(), rho)
+    side = len({int(x) for x in centre[0]})
+    assert len(listed) < side * side  # the rectangle's corners are left out
+    assert far.min() < SPHERE_TILE  # and the middle is in

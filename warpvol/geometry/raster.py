@@ -517,9 +517,56 @@ def sphere_extent(xc: float, z: float, r: float):
 
 
 @wp.kernel
+def tile_cones(offset: int, cam: RasterView, tiles_x: int, cones: wp.array(dtype=wp.vec4)):
+    """Per SPHERE_TILE tile: the cone about its centre ray through its corners, which holds
+    the tile's rays, as (unit axis, cos of its half angle widened by 1e-4 rad for rounding)."""
+    k = wp.tid() + offset
+    x0 = float((k % tiles_x) * SPHERE_TILE)
+    y0 = float((k / tiles_x) * SPHERE_TILE)
+    s = float(SPHERE_TILE)
+    o, axis = view_ray_at(cam, x0 + 0.5 * s, y0 + 0.5 * s)
+    o, c00 = view_ray_at(cam, x0, y0)
+    o, c10 = view_ray_at(cam, x0 + s, y0)
+    o, c01 = view_ray_at(cam, x0, y0 + s)
+    o, c11 = view_ray_at(cam, x0 + s, y0 + s)
+    cos_half = wp.min(wp.min(wp.dot(axis, c00), wp.dot(axis, c10)), wp.min(wp.dot(axis, c01), wp.dot(axis, c11)))
+    half = wp.acos(wp.clamp(cos_half, -1.0, 1.0)) + 1.0e-4
+    cones[k] = wp.vec4(axis[0], axis[1], axis[2], wp.cos(wp.min(half, 3.14159265)))
+
+
+@wp.func
+def tile_meets_sphere(cone: wp.vec4, rel: wp.vec3, dist: float, sin_b: float, cos_b: float) -> bool:
+    """Whether a sphere at ``rel`` from the eye (``dist`` = |rel| > its radius r, sin_b = r /
+    dist, cos_b its angular radius's cosine) meets a tile's cone (``tile_cones``): the angle
+    between the cone's axis and the centre is at most the cone's half angle h plus the
+    sphere's angular radius b, cos(angle) >= cos(h + b). It cuts the corners of a sphere's
+    tile rectangle, which its projection misses. cos_b < 0 (the eye inside the sphere): every
+    tile."""
+    if cos_b < 0.0:
+        return True
+    cos_h = cone[3]
+    sin_h = wp.sqrt(wp.max(1.0 - cos_h * cos_h, 0.0))
+    cos_a = (rel[0] * cone[0] + rel[1] * cone[1] + rel[2] * cone[2]) / dist
+    return cos_a >= cos_h * cos_b - sin_h * sin_b
+
+
+@wp.func
+def sphere_seen_from(rel: wp.vec3, r: float):
+    """|rel|, r / |rel| and the cosine of asin(r / |rel|) for ``tile_meets_sphere``; inside the
+    sphere (|rel| <= r) cos_b = -1: it meets every tile."""
+    dist = wp.length(rel)
+    if dist <= r:
+        return wp.max(dist, 1.0e-30), 0.0, -1.0
+    sin_b = r / dist
+    return dist, sin_b, wp.sqrt(wp.max(1.0 - sin_b * sin_b, 0.0))
+
+
+@wp.kernel
 def sphere_tile_rect(offset: int, cam: RasterView, centres: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float),
-                     tiles_x: int, tiles_y: int, rect: wp.array(dtype=wp.vec4i), count: wp.array(dtype=int)):
-    """Tiles [x0, x1) x [y0, y1) sphere p's projection may touch (a perspective camera view)."""
+                     tiles_x: int, tiles_y: int, cones: wp.array(dtype=wp.vec4), rect: wp.array(dtype=wp.vec4i),
+                     count: wp.array(dtype=int)):
+    """Tiles [x0, x1) x [y0, y1) sphere p's projection may touch (a perspective camera view), and how
+    many of them ``tile_meets_sphere``."""
     p = wp.tid() + offset
     kx = wp.length(cam.right)
     ky = wp.length(cam.up)
@@ -544,24 +591,34 @@ def sphere_tile_rect(offset: int, cam: RasterView, centres: wp.array(dtype=wp.ve
         y0 = wp.clamp(int(wp.floor((1.0 - by / ky) * 0.5 * h / float(SPHERE_TILE))), 0, tiles_y)
         y1 = wp.clamp(int(wp.floor((1.0 - ay / ky) * 0.5 * h / float(SPHERE_TILE))) + 1, 0, tiles_y)
     rect[p] = wp.vec4i(x0, x1, y0, y1)
-    count[p] = wp.max(x1 - x0, 0) * wp.max(y1 - y0, 0)
+    n = int(0)
+    dist, sin_b, cos_b = sphere_seen_from(rel, r)
+    for ty in range(y0, y1):
+        for tx in range(x0, x1):
+            if tile_meets_sphere(cones[ty * tiles_x + tx], rel, dist, sin_b, cos_b):
+                n += 1
+    count[p] = n
 
 
 @wp.kernel
-def sphere_tile_pairs(offset: int, cam: RasterView, centres: wp.array(dtype=wp.vec3), rect: wp.array(dtype=wp.vec4i),
-                      start: wp.array(dtype=int), tiles_x: int, z_far: float, keys: wp.array(dtype=wp.int64),
-                      values: wp.array(dtype=int)):
-    """Key tile << 32 | depth for every (tile, sphere) pair of sphere p."""
+def sphere_tile_pairs(offset: int, cam: RasterView, centres: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float),
+                      cones: wp.array(dtype=wp.vec4), rect: wp.array(dtype=wp.vec4i), start: wp.array(dtype=int),
+                      tiles_x: int, z_far: float, keys: wp.array(dtype=wp.int64), values: wp.array(dtype=int)):
+    """Key tile << 32 | depth for every (tile, sphere) pair of sphere p: the tiles of its
+    rectangle that ``tile_meets_sphere``, as ``sphere_tile_rect`` counted them."""
     p = wp.tid() + offset
     b = rect[p]
-    depth = wp.clamp(wp.dot(centres[p] - cam.origin, cam.fwd) / z_far, 0.0, 1.0)
+    rel = centres[p] - cam.origin
+    dist, sin_b, cos_b = sphere_seen_from(rel, radius[p])
+    depth = wp.clamp(wp.dot(rel, cam.fwd) / z_far, 0.0, 1.0)
     q = wp.int64(depth * float(SPLAT_DEPTH - wp.int64(1)))
     k = start[p]
     for ty in range(b[2], b[3]):
         for tx in range(b[0], b[1]):
-            keys[k] = wp.int64(ty * tiles_x + tx) * SPLAT_DEPTH * wp.int64(2) + q
-            values[k] = p
-            k += 1
+            if tile_meets_sphere(cones[ty * tiles_x + tx], rel, dist, sin_b, cos_b):
+                keys[k] = wp.int64(ty * tiles_x + tx) * SPLAT_DEPTH * wp.int64(2) + q
+                values[k] = p
+                k += 1
 
 
 @wp.kernel
@@ -600,16 +657,19 @@ def bin_spheres(cam: RasterView, centres: wp.array, radius: wp.array, z_far: flo
     n = centres.shape[0]
     if not n:
         return tl
+    cones = wp.empty(tx * ty, dtype=wp.vec4, device=device)
+    dev.launch(tile_cones, tx * ty, [cam, tx, cones], device)
     rect = wp.empty(n, dtype=wp.vec4i, device=device)
     count = wp.empty(n, dtype=int, device=device)
-    dev.launch(sphere_tile_rect, n, [cam, centres, radius, tx, ty, rect, count], device)
+    dev.launch(sphere_tile_rect, n, [cam, centres, radius, tx, ty, cones, rect, count], device, min_split=4096)
     start = wp.empty(n, dtype=int, device=device)
     wp.utils.array_scan(count, start, inclusive=False)
     total = int(start.numpy()[-1] + count.numpy()[-1])
     if total:
         keys = wp.empty(2 * total, dtype=wp.int64, device=device)
         tl.values = wp.empty(2 * total, dtype=int, device=device)
-        dev.launch(sphere_tile_pairs, n, [cam, centres, rect, start, tx, z_far, keys, tl.values], device)
+        dev.launch(sphere_tile_pairs, n, [cam, centres, radius, cones, rect, start, tx, z_far, keys, tl.values], device,
+                   min_split=4096)
         wp.utils.radix_sort_pairs(keys, tl.values, total)
         dev.launch(tile_ranges, total, [keys, total, tl.first, tl.last], device)
     return tl

@@ -48,8 +48,9 @@ one block of b particles, so a frame renders the block once (b) and then its ins
   paper's depth buffer) and its colour lit through the light pass (the cloud's shadow) and
   past the other surfaces.
 * ``gather`` (reads the camera, background): instances listed per 8 x 8 pixel tile near
-  to far (``bin_spheres``) and composited front to back: an instance adds T alpha L and
-  scales T by 1 - alpha. Objects in clouds (section 2.4): where the surface depth falls in
+  to far (``bin_spheres``, by their bounding spheres) and composited front to back: an
+  instance adds T alpha L and scales T by 1 - alpha; a block's impostor is read in its plane
+  within its reach R of its centre, where its spheres are. Objects in clouds (section 2.4): where the surface depth falls in
   a block's [front, back] interval along the pixel ray, its optical depth is scaled by the
   fraction of the interval in front of the surface (uniform density in the block; for a
   one-particle instance the chord is cut exactly). ``object_depth = 0`` is the billboard
@@ -337,16 +338,24 @@ def shade_surfaces(offset: int, cam: RasterView, s: Surfaces, cl: CloudLight, de
 
 
 @wp.func
-def bilinear3(a: wp.array(dtype=wp.vec3), base: int, T: int, fx: float, fy: float) -> wp.vec3:
+def bilinear_taps(T: int, fx: float, fy: float):
+    """The four texels (row-major in a T x T grid, clamped at its edges) a bilinear lookup at
+    texel coordinates (fx, fy) blends, and its two weights; the nearest texel is the first
+    (rounded) where the weights are below a half."""
     i0 = wp.clamp(int(wp.floor(fx)), 0, T - 1)
     j0 = wp.clamp(int(wp.floor(fy)), 0, T - 1)
     i1 = wp.min(i0 + 1, T - 1)
     j1 = wp.min(j0 + 1, T - 1)
     ax = wp.clamp(fx - float(i0), 0.0, 1.0)
     ay = wp.clamp(fy - float(j0), 0.0, 1.0)
-    top = wp.lerp(a[base + j0 * T + i0], a[base + j0 * T + i1], ax)
-    bot = wp.lerp(a[base + j1 * T + i0], a[base + j1 * T + i1], ax)
-    return wp.lerp(top, bot, ay)
+    return wp.vec4i(j0 * T + i0, j0 * T + i1, j1 * T + i0, j1 * T + i1), ax, ay
+
+
+@wp.func
+def blend4(a: wp.array(dtype=wp.vec3), base: int, k: wp.vec4i, ax: float, ay: float) -> wp.vec3:
+    """The bilinear blend of a[base + k] for the taps and weights of ``bilinear_taps``."""
+    top = wp.lerp(a[base + k[0]], a[base + k[1]], ax)
+    return wp.lerp(top, wp.lerp(a[base + k[2]], a[base + k[3]], ax), ay)
 
 
 @wp.kernel
@@ -355,13 +364,19 @@ def gather(offset: int, per: int, cam: RasterView, B: Blocks, imp: Impostors, tl
     """Front to back over the pixel's tile: each instance adds T alpha L and scales T by
     1 - alpha, its opacity cut where the surface lies inside it. A textured instance's
     transmittance is 1 - alpha straight from its impostor (no log or exp), except where the
-    surface cuts it: there (1 - alpha)^f, f the fraction of its depth interval in front.
-    A thread does ``per`` pixels in a row (``device.per_thread``)."""
+    surface cuts it: there (1 - alpha)^f, f the fraction of its depth interval in front. It
+    is read only within the block's reach R of its centre in its plane: its spheres lie
+    there, and beyond R the bilinear lookup would smear its last texels outward. A pixel
+    whose tile lists nothing shows what lies behind. A thread does ``per`` pixels in a row
+    (``device.per_thread``)."""
     first = (wp.tid() + offset) * per
     for tid in range(first, wp.min(first + per, cam.width * cam.height)):
-        o, d = pixel_ray(cam, tid)
         t_s = surf.depth[tid]
         tile = pixel_tile(cam, tid, tl.tiles_x)
+        if tl.first[tile] == tl.last[tile]:  # no instance near this pixel: what lies behind
+            image[tid] = wp.where(t_s < INF, surf.colour[tid], background)
+            continue
+        o, d = pixel_ray(cam, tid)
         L = wp.vec3(0.0)
         Tr = wp.vec3(1.0)
         one = wp.vec3(1.0)
@@ -385,29 +400,30 @@ def gather(offset: int, per: int, cam: RasterView, B: Blocks, imp: Impostors, tl
                     Lq = shaded.particles[i]
             else:
                 t_plane = wp.dot(c - o, imp.fwd) / cos_f
-                if t_plane > 0.0:
-                    x = o + t_plane * d - c
+                x = o + t_plane * d - c  # in the plane: x . fwd = 0
+                u = wp.dot(x, imp.right)
+                v = wp.dot(x, imp.up)
+                R = B.reach[i]
+                if t_plane > 0.0 and u * u + v * v < R * R:  # beyond R no sphere of the block
                     T = imp.res
-                    R = B.reach[i]
-                    fx = (wp.dot(x, imp.right) / R + 1.0) * 0.5 * float(T) - 0.5
-                    fy = (wp.dot(x, imp.up) / R + 1.0) * 0.5 * float(T) - 0.5
-                    if fx > -1.0 and fx < float(T) and fy > -1.0 and fy < float(T):
-                        base = B.texel0[t]
-                        tr = one - bilinear3(imp.alpha, base, T, fx, fy)
-                        k = wp.clamp(int(fy + 0.5), 0, T - 1) * T + wp.clamp(int(fx + 0.5), 0, T - 1)
-                        t0 = t_plane + imp.front[base + k] / cos_f
-                        t1 = t_plane + imp.back[base + k] / cos_f
-                        if surf.object_depth == 0:
-                            if t_plane > t_s:
-                                tr = one
-                        elif t_s <= t0:
+                    h = 0.5 * float(T) / R
+                    taps, ax, ay = bilinear_taps(T, (u + R) * h - 0.5, (v + R) * h - 0.5)
+                    base = B.texel0[t]
+                    tr = one - blend4(imp.alpha, base, taps, ax, ay)
+                    k = taps[wp.where(ay < 0.5, 0, 2) + wp.where(ax < 0.5, 0, 1)]  # the nearest texel
+                    t0 = t_plane + imp.front[base + k] / cos_f
+                    t1 = t_plane + imp.back[base + k] / cos_f
+                    if surf.object_depth == 0:
+                        if t_plane > t_s:
                             tr = one
-                        elif t_s < t1:
-                            f = (t_s - t0) / (t1 - t0)
-                            tr = wp.vec3(wp.pow(wp.max(tr[0], 1.0e-30), f), wp.pow(wp.max(tr[1], 1.0e-30), f),
-                                         wp.pow(wp.max(tr[2], 1.0e-30), f))
-                        if tr[0] < 1.0 or tr[1] < 1.0 or tr[2] < 1.0:
-                            Lq = bilinear3(shaded.texels, shaded.first[i], T, fx, fy)
+                    elif t_s <= t0:
+                        tr = one
+                    elif t_s < t1:
+                        f = (t_s - t0) / (t1 - t0)
+                        tr = wp.vec3(wp.pow(wp.max(tr[0], 1.0e-30), f), wp.pow(wp.max(tr[1], 1.0e-30), f),
+                                     wp.pow(wp.max(tr[2], 1.0e-30), f))
+                    if tr[0] < 1.0 or tr[1] < 1.0 or tr[2] < 1.0:
+                        Lq = blend4(shaded.texels, shaded.first[i], taps, ax, ay)
             if tr[0] < 1.0 or tr[1] < 1.0 or tr[2] < 1.0:
                 L += wp.cw_mul(wp.cw_mul(Tr, one - tr), Lq)
                 Tr = wp.cw_mul(Tr, tr)
@@ -704,10 +720,9 @@ class DepthImpostors(Technique):
             self.surf_depth = wp.full(n, INF, dtype=float, device=device)
             self.surf_colour = wp.zeros(n, dtype=wp.vec3, device=device)
         centres, reach, textured = self._inst_host
-        # a textured instance's impostor is read in its plane wherever one of the four texels
-        # a pixel blends may be opaque: within R of the centre (the texels sample the block's
-        # spheres, all within its reach R) plus a texel's diagonal, 2 sqrt(2) R / T
-        reach = np.where(textured, reach * (1.0 + 2.0 * np.sqrt(2.0) / self.impostors.res), reach)
+        # a textured instance is read in its plane within its reach R of the centre (its
+        # spheres lie there; ``gather`` cuts the bilinear lookup's smear beyond R): a disc
+        # inside the sphere of radius R, so the sphere's tiles hold it
         eye = np.asarray(cam.origin, np.float64)
         z_far = float(np.max(np.linalg.norm(centres - eye, axis=1) + reach)) if len(centres) else 1.0
         tl = bin_spheres(view, self.blocks.centre, wp.array(reach.astype(np.float32), dtype=float, device=device), z_far,
