@@ -10,10 +10,13 @@ import pytest
 import warp as wp
 
 import warpvol as wv
+from warpvol import device as dev
 from warpvol.media.grid import grid_trilinear, majorant_grid, volume_trilinear
 from warpvol.scene import SceneError, load_scene
 from warpvol.scene.procedural import NANOVDB_CLOUD, sparse_cloud_density
 from warpvol.upload import MediaBuffers
+
+dev.kernel_module(__name__)  # this file's kernels: warpvol's Warp options
 
 BMIN, BMAX = [-1.0, -0.8, -0.9], [1.0, 0.9, 1.1]
 

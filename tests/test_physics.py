@@ -6,9 +6,12 @@ import numpy as np
 import pytest
 import warp as wp
 
+from warpvol import device as dev
 from warpvol.geometry.intersect import ray_box, ray_sphere, sphere_chord
 from warpvol.physics import airlight, phase, sampling, sphere, transmittance
 from warpvol.physics.lights import KINDS, Emitter, ball_mean_inverse_square, light_incident
+
+dev.kernel_module(__name__)  # this file's kernels: warpvol's Warp options
 
 
 @wp.kernel

@@ -38,6 +38,8 @@ import warp as wp
 from .. import device as dev
 from ..physics.constants import INF
 
+dev.kernel_module(__name__)
+
 NEAR = wp.constant(1.0e-6)  # a perspective view clips triangles to depth > NEAR (scene units)
 BOX_SLACK = wp.constant(1.0e-3)  # pixels: a triangle's box is widened by this much for rounding
 EDGE_SLACK = wp.constant(1.0e-6)  # barycentric slack: a pixel centre on a shared edge is covered by both

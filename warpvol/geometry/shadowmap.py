@@ -29,6 +29,8 @@ from ..physics.lights import Emitter
 from .mesh import Surfaces
 from .raster import RasterView, owner, pixel_ray, rasterise, view_ray
 
+dev.kernel_module(__name__)
+
 NONE = wp.constant(0)  # no occluders: every point is lit
 PERSPECTIVE = wp.constant(1)
 CUBE = wp.constant(2)

@@ -26,6 +26,8 @@ from ..geometry.intersect import inside_box, ray_box
 from ..physics.constants import INF
 from ..physics.sampling import sample_exponential
 
+dev.kernel_module(__name__)
+
 
 @wp.func
 def grid_value(data: wp.array(dtype=Any), offset: int, dims: wp.vec3i, ix: int, iy: int, iz: int):

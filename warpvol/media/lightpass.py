@@ -51,6 +51,8 @@ from ..physics.lights import DIRECTIONAL, Emitter, light_incident, particle_inci
 from ..physics.transmittance import sphere_escape, step_integral, transmittance_rgb
 from .particles import BlockCloud, Blocks, ParticleBuffers, Particles, particle_optical_depth
 
+dev.kernel_module(__name__)
+
 EXACT = wp.constant(0)
 SLICES = wp.constant(1)
 FOURIER = wp.constant(2)

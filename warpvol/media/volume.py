@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import warp as wp
 
+from .. import device as dev
 from ..geometry.intersect import inside_box, ray_box, ray_sphere
 from ..physics.constants import INF, STREAM
 from ..physics.phase import PhaseParams, phase_eval
@@ -29,6 +30,8 @@ from .grid import Grid, grid_density, grid_tracking
 from .homogeneous import shape_chord, shape_inside, shape_length, uniform_collision
 from .particles import Particles, particle_free_flight, particle_optical_depth, particle_sigma_t
 from .rbf import Gaussians, rbf_density, rbf_depths_and_density, rbf_free_flight, rbf_optical_depth
+
+dev.kernel_module(__name__)
 
 BOX = wp.constant(0)
 SPHERE = wp.constant(1)

@@ -79,6 +79,8 @@ from ..scene.procedural import split_blocks
 from ..shading import reflected, sky_reflected, sky_scattered
 from ..upload import SceneUploads, check_particle_scene, particle_buffers, pinhole, sky_lights
 
+dev.kernel_module(__name__)
+
 NAME = "depth_impostors"
 RES_MIN, RES_MAX = 2, 128  # impostor texels a side where impostor_res = 0
 SETTINGS = {

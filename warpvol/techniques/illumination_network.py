@@ -99,6 +99,8 @@ from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Bias, Quality, Setting, SettingsError, Stage, Technique
 from ..upload import SceneUploads, check_particle_scene, particle_buffers, pinhole
 
+dev.kernel_module(__name__)
+
 NAME = "illumination_network"
 ONE_SHOT_CAP = 2000  # iterations a one-shot render may take to converge
 SETTINGS = {

@@ -100,6 +100,8 @@ from ..pipeline import Bias, Quality, Setting, Stage, Technique
 from ..shading import light_arriving, marched_optical_depth, surface_through_maps
 from ..upload import SceneUploads, pinhole, scene_bounds, shadow_map_structs
 
+dev.kernel_module(__name__)
+
 NAME = "light_shafts"
 SETTINGS = {
     "steps": Setting(64, 1, 1 << 16, "N: samples along each view ray, over a whole M x M block when interleaved"),

@@ -73,6 +73,8 @@ from ..pipeline import Bias, Quality, Setting, Stage, Technique
 from ..shading import camera_segment, light_arriving, surface_through_maps
 from ..upload import SceneUploads, pinhole, shadowed_lights
 
+dev.kernel_module(__name__)
+
 NAME = "particle_glow"
 SETTINGS = {
     "steps": Setting(128, 1, 1 << 16, "march steps along each view ray's media segment"),

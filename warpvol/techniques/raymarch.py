@@ -43,6 +43,8 @@ from ..shading import (camera_segment, light_transmittance, marched_optical_dept
                        sky_scattered, surface_direct)
 from ..upload import SceneUploads, light_structs, lights_array, pinhole, sky_light_structs
 
+dev.kernel_module(__name__)
+
 NAME = "raymarch"
 SETTINGS = {
     "steps": Setting(64, 1, 1 << 20, "steps along each camera ray (used when step_length = 0)"),

@@ -82,6 +82,8 @@ from ..scene.model import RBFMedium
 from ..shading import reflected
 from ..upload import MediaBuffers, SceneUploads, medium_bounds, pinhole, scene_bounds
 
+dev.kernel_module(__name__)
+
 NAME = "rbf_propagation"
 SETTINGS = {
     "grid": Setting(20, 1, 512, "cells per axis of the extinction and opacity volumes"),

@@ -59,6 +59,8 @@ from ..pipeline import Quality, Setting, Stage, Technique
 from ..shading import light_transmittance, surface_direct
 from ..upload import SceneUploads, pinhole
 
+dev.kernel_module(__name__)
+
 NAME = "reference"
 SETTINGS = {
     "spp": Setting(64, 1, 1 << 24, "samples per pixel"),
