@@ -55,10 +55,9 @@ light impostor per template and light, b work, splatted once per instance, N / b
 the template's camera impostor (b particles x T^2 texels, each texel's chords weighed against the
 others in front: b^2 T^2, why 20 blocks of 400 cost more here than 40 of 200); *shade*: the light
 at every impostor texel (blocks) or particle (no blocks); *gather*: every pixel composites the
-instances listed in its 8 x 8 pixel tile, nearest first. A one-particle instance is listed by
-its sphere; a block by its reach R widened by a texel's diagonal (R (1 + 2 sqrt(2) / T)), where
-the bilinear lookup can still read an opaque texel: so a block costs the gather more pairs per
-pixel it covers than its particles would, most in the 1600-block row (T = 8, 1.35 R). *T* (the
+instances listed in its 8 x 8 pixel tile, nearest first. An instance is listed in the tiles
+whose cone of rays meets its bounding sphere: a particle's own sphere, a block's reach R (its
+impostor is read only within R of its centre, in its plane, where its spheres are). *T* (the
 last column) is the camera impostor's texels a side,
 from the block's size: 3 R / r (a texel two thirds of a particle radius r across, R the block's
 radius), no finer than two pixels of the block's largest projected diameter; so the 1600 blocks
