@@ -83,6 +83,7 @@ dev.kernel_module(__name__)
 
 NAME = "depth_impostors"
 RES_MIN, RES_MAX = 2, 128  # impostor texels a side where impostor_res = 0
+LIGHT_WORK = 4.0  # a texel's light-map read and phase for one light, in simple per-pixel threads (device.launch)
 SETTINGS = {
     "impostor_res": Setting(0, 0, 512, "texels across a block's depth impostor (T x T); 0: from the block's size "
                                        "(``impostor_detail``)"),
@@ -577,6 +578,7 @@ class DepthImpostors(Technique):
         self.blocks = B
         self._reach_t = wp.array(reach_t, dtype=float, device=device)
         self._textured_t = wp.array(textured_t, dtype=int, device=device)
+        self._texel_work = float(np.mean(np.asarray(count)[textured_t])) if len(textured_t) else 1.0
         self.texels = texels
         self.n_instances = len(tpl_of)
         has_texture = np.asarray(texel0, np.int64)[tpl_of] >= 0 if len(tpl_of) else np.zeros(0, bool)
@@ -633,8 +635,10 @@ class DepthImpostors(Technique):
         imp.mid = wp.zeros(n, dtype=float, device=self.device)
         imp.res = self._view_res()
         if self.texels:
+            # a texel tests its ray against the block's b spheres, and each sphere it meets against the
+            # others in front: split over the cores by that work, not by the texel count
             dev.launch(make_impostors, self._textured_t.shape[0] * imp.res * imp.res,
-                       [self.blocks, self._reach_t, imp, self._textured_t], self.device)
+                       [self.blocks, self._reach_t, imp, self._textured_t], self.device, work=self._texel_work)
         self.impostors = imp
 
     def _layout_res(self, reach: np.ndarray, radius: np.ndarray) -> int:
@@ -692,7 +696,7 @@ class DepthImpostors(Technique):
             T = self.impostors.res
             dev.launch(shade_texels, self.n_textured * T * T,
                        [self.blocks, self.impostors, self._cloud_light(), phase_fn(self.phase, self.table), eye, widen,
-                        self._textured, self.texel_radiance], device)
+                        self._textured, self.texel_radiance], device, work=LIGHT_WORK * (len(self.scene.lights) + sky.shape[0]))
         if self.n_instances > self.n_textured:
             n = self._cloud.struct.centres.shape[0]
             for lights, lp, is_sky in ((self.uploads.lights, self.light_pass, 0), (sky, self.sky_pass, 1)):
