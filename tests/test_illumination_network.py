@@ -455,3 +455,35 @@ def test_a_one_shot_render_is_finished(device, monkeypatch):
     monkeypatch.setattr(net, "ONE_SHOT_CAP", 2)
     with pytest.warns(RuntimeWarning, match="not converged after 2 iterations"):
         wv.render(scene, "illumination_network", device=device)
+
+
+@pytest.mark.parametrize("n,spread,per_column", [(120, 0.6, 3.0), (600, 0.6, 4.0), (2000, 0.3, 8.0), (2000, 1.2, 2.0)])
+def test_window_from_particles_per_column(device, n, spread, per_column):
+    """``column = K``: M is the largest window (up to the paper's rule) whose occupied columns
+    hold K particles or more on average along the measured directions. Checked on the network
+    the kernels build: along a direction each occupied column has one particle that sees the
+    sky (V = -1), so N / that count is its mean column; at M the mean is at least K, at M + 1
+    (where the paper's rule allows it) below K. Clouds of several densities; scaling a cloud
+    (positions and radius) leaves M as it is."""
+    D, WINDOW_AT, SIGMA = 24, 4096, 20.0  # the paper's rule taken at 4096 directions: a cap above the column rule's M
+    rng = np.random.default_rng(n)
+    pos = rng.uniform(-spread, spread, size=(n, 3))
+
+    def window(scale, M=0):
+        s = cloud(positions=pos * scale, radius=0.05 * scale, sigma_t=SIGMA / scale)
+        r = wv.Renderer(s, "illumination_network", device=device, directions=D, column=per_column, window=M,
+                        window_at=WINDOW_AT, iterations=0)
+        r.render()
+        heads = (r.arrays()["visibility"] < 0).sum(0)  # per direction: the occupied columns
+        return r.diagnostics()["window"], float(np.mean(n / heads[:: D // 3][:3]))
+
+    M, mean = window(1.0)
+    assert mean >= per_column
+    centre = 0.5 * (pos.min(0) + pos.max(0))
+    R = np.sqrt(((pos - centre) ** 2).sum(1)).max() + 0.05
+    tau = SIGMA * n * 0.05**3 / R**3
+    cap = window_rule(WINDOW_AT, R, tau)
+    assert M <= cap
+    if M < cap:
+        assert window(1.0, M + 1)[1] < per_column
+    assert window(7.0)[0] == M

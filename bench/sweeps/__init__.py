@@ -80,33 +80,37 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
           "over grid size and march steps, rbf-cornell 80x60",
           "rbf_propagation", "accuracy", rbf_propagation.rbf_accuracy_grid, rbf_propagation.rbf_accuracy),
     Sweep("illumination-network", "Szirmay-Kalos et al. 2005 section 4: 1024 and 512 particles at 128 directions, one iteration "
-          "per frame, lights and camera moving, 512x512 (direct light, emission, one iteration, splat)",
+          "per frame, lights and camera moving, 512x512 (direct light, emission, one iteration, splat), HG g = 0 (isotropic)",
           "illumination_network", "paper", illumination_network.network_table_grid, illumination_network.network_frame, paper=("illumination_network",),
           figure=row_fps),
     Sweep("illumination-network-sweep", "illumination_network over N (256..16384 particles) and D (32..512 "
           "directions), window by the paper's rule unless given: frame, one iteration (with its multiply-add rate) "
-          "and the visibility-network build",
+          "and the visibility-network build, HG g = 0 (isotropic)",
           "illumination_network", "paper", illumination_network.network_sweep_grid, illumination_network.network_frame),
     Sweep("illumination-network-convergence", "Szirmay-Kalos et al. 2005 figure 6: change per iteration and error to the converged "
-          "solution, iterating from zero, 1024 particles, 128 directions, albedo 0.9 and 0.99, the window by the "
-          "paper's rule (window=0, M = 63) and M = 16",
+          "solution, iterating from zero, 1024 particles, 128 directions, albedo 0.9 and 0.99, HG g = 0 (isotropic), the "
+          "window by the paper's rule (window=0, M = 70), M = 16, and M from 4 particles per column (column=4)",
           "illumination_network", "convergence", illumination_network.convergence_grid, illumination_network.convergence),
     Sweep("illumination-network-accuracy", "illumination_network: converged image against the multiple-scattering "
-          "reference vs ms per frame (lights moving), over N, D and the window M, 48x48",
+          "reference vs ms per frame (lights moving), over N, D and the window M (given, the paper's rule, or from "
+          "particles per column), HG g = 0 (isotropic), 48x48",
           "illumination_network", "accuracy", illumination_network.network_accuracy_grid, illumination_network.network_accuracy),
     Sweep("illumination-network-animated", "beyond Szirmay-Kalos et al. 2005: a drifting cloud with the visibility network "
-          "re-peeled k directions a frame (0: all), error against the full rebuild per frame and frame time",
+          "re-peeled k directions a frame (0: all), error against the full rebuild per frame and frame time, HG g = 0 "
+          "(isotropic)",
           "illumination_network", "animated", illumination_network.animated_grid, illumination_network.animated),
     Sweep("illumination-network-lightpass", "the shared light pass (media/lightpass.py) in illumination_network: "
           "exact transmittance (BVH) at 4, 16, 64 points a sphere, depth slices S = 4..64 and Fourier terms "
-          "K = 4..32 at 16 points; the direct light per particle against the exact sphere mean, and the image",
+          "K = 4..32 at 16 points; the direct light per particle against the exact sphere mean, and the image, HG g = 0 "
+          "(isotropic)",
           "illumination_network", "lightpass", illumination_network.lightpass_grid, illumination_network.lightpass_accuracy),
     Sweep("illumination-network-lightpass-scaling", "the shared light pass as particles get finer (1024..8192 "
           "particles, radius ~ n^(-1/3), sigma_t r fixed, both suns turning 3 degrees a frame): the direct stage's ms "
-          "and the map it ended at (texels, refinements, error, fallback to exact)",
+          "and the map it ended at (texels, refinements, error, fallback to exact), HG g = 0 (isotropic)",
           "illumination_network", "table", illumination_network.lightpass_scaling_grid, illumination_network.lightpass_scaling),
     Sweep("illumination-network-albedo", "Szirmay-Kalos et al. 2005's bound: the error of one step eps grows to at most "
-          "eps / (1 - a); single- and multiple-scattering RMSE against the reference at albedo 0.5, 0.8, 0.95",
+          "eps / (1 - a); single- and multiple-scattering RMSE against the reference at albedo 0.5, 0.8, 0.95, HG g = 0 "
+          "(isotropic)",
           "illumination_network", "bound", illumination_network.albedo_grid, illumination_network.albedo_bound),
     Sweep("reference-speed", "the reference path tracer: camera paths per second (and per core) on the built-in "
           "scenes at 160x120, 64 spp, and a 400-sphere cumulus at 80x60, 4096 spp, all orders of scattering; "

@@ -117,7 +117,8 @@ CONVERGENCE_SHOWN = (20, 40, 60, 80)
 def convergence_grid(quick: bool) -> list[dict]:
     if quick:
         return [{"albedo": 0.9, "window": 0}]
-    return [{"albedo": a, "window": m} for m in (0, 16) for a in (0.9, 0.99)]
+    return ([{"albedo": a, "window": m} for m in (0, 16) for a in (0.9, 0.99)]
+            + [{"albedo": a, "window": 0, "column": 4} for a in (0.9, 0.99)])
 
 
 def convergence(params: dict, device: str, quick: bool) -> dict:
@@ -129,7 +130,7 @@ def convergence(params: dict, device: str, quick: bool) -> dict:
     iters = 20 if quick else 300
     scene = network_scene(quick, 1024, 256, albedo=params["albedo"])
     r = wv.Renderer(scene, technique="illumination_network", device=device, iterations=0,
-                    window=params.get("window", 0))
+                    window=params.get("window", 0), column=params.get("column", 0))
     r.render()
     t = r.technique
     nets, changes = [], []
@@ -157,7 +158,8 @@ def network_accuracy_grid(quick: bool) -> list[dict]:
     if quick:
         return [{"particles": 64, "directions": 16, "window": 0}, {"particles": 64, "directions": 32, "window": 0}]
     return ([{"particles": n, "directions": d, "window": 0} for n in (256, 1024) for d in (16, 32, 64, 128, 256)]
-            + [{"particles": 1024, "directions": 128, "window": m} for m in (8, 16, 32, 96)])
+            + [{"particles": 1024, "directions": 128, "window": m} for m in (8, 16, 32, 96)]
+            + [{"particles": n, "directions": 128, "window": 0, "column": k} for n in (256, 1024) for k in (2, 4, 8)])
 
 
 def network_accuracy(params: dict, device: str, quick: bool) -> dict:
@@ -166,7 +168,7 @@ def network_accuracy(params: dict, device: str, quick: bool) -> dict:
     w = 24 if quick else 48
     scene = network_scene(quick, params["particles"], w)
     r = wv.Renderer(scene, technique="illumination_network", device=device, iterations=2000, tolerance=1e-5,
-                    directions=params["directions"], window=params["window"])
+                    directions=params["directions"], window=params["window"], column=params.get("column", 0))
     row = time_frames(r, repeats=1 if quick else 2, invalidate=("lights",))
     row["window_used"] = r.diagnostics()["window"]
     row["iterations_to_converge"] = r.diagnostics()["iterations"]

@@ -13,7 +13,12 @@ directions, between particles that see each other along them. Stages:
   V[p, i] = vp, the particle p sees upstream along direction i, and vp's segment opacity
   alpha = 1 - exp(-tau_vp |x_p - x_vp|.w_i), tau_vp = sigma_t times the number of spheres
   that contain vp's centre (the medium's extinction there). M follows the paper's rule
-  D (R tau)^2 / pi >= M^2 with tau the cloud's mean extinction (``window = 0``).
+  D (R tau)^2 / pi >= M^2 with tau the cloud's mean extinction (``window = 0``). That rule
+  is an upper bound: at its top a thin cloud's columns hold one to three particles, most
+  links see past the cloud and light crosses it in a few iterations. ``column = K`` takes
+  instead the largest M under the rule whose occupied columns hold K particles or more on
+  average, counted on the cloud's own projection along three of the D directions
+  (``column_window``): it depends on how the particles lie, not on the cloud's scale.
   Beyond the paper (its future work): for an animated cloud, ``refresh = k`` re-peels only
   k directions per frame, round robin, and keeps the other directions' links from earlier
   frames (positions, extinction and direct light are always current).
@@ -108,6 +113,8 @@ SETTINGS = {
     "direction_seed": Setting(0, 0, 1 << 30, "0: the Fibonacci set of D directions as laid out; k: the set turned by "
                                              "a random rotation drawn from seed k (target_error compares two)"),
     "window": Setting(0, 0, 4096, "window resolution M per direction; 0: the paper's rule D (R tau)^2 / pi >= M^2"),
+    "column": Setting(0.0, 0.0, 1.0e6, "window = 0: the largest M (up to the paper's rule) whose occupied pixel "
+                                       "columns hold at least this many particles on average; 0: the paper's rule"),
     "window_at": Setting(0, 0, 4096, "window = 0: the rule taken at this many directions; 0: at D (target_error holds "
                                      "the window of the default D while it raises D)"),
     "iterations": Setting(1, 0, 1 << 20, "iterations per frame (the paper: 1)"),
@@ -448,6 +455,43 @@ def window_rule(directions: int, radius: float, tau: float) -> int:
     return max(1, int(np.floor(np.sqrt(directions * (radius * tau) ** 2 / np.pi))))
 
 
+def column_counts(pos: np.ndarray, centre, R: float, M: int, dirs: np.ndarray) -> float:
+    """Particles per occupied pixel column of an M x M window over the ball (centre, R),
+    averaged over the directions ``dirs``: N over the columns the particles fall in."""
+    x = np.asarray(pos, np.float64) - np.asarray(centre, np.float64)
+    means = []
+    for w in np.asarray(dirs, np.float64):
+        # the window's axes as project_particles takes them (physics.sampling.orthonormal_basis)
+        sign = 1.0 if w[2] >= 0.0 else -1.0
+        a = -1.0 / (sign + w[2])
+        b = w[0] * w[1] * a
+        e1 = np.array([1.0 + sign * w[0] * w[0] * a, sign * b, -sign * w[0]])
+        e2 = np.array([b, sign + w[1] * w[1] * a, -w[1]])
+        u = np.clip(np.floor((x @ e1 + R) * M / (2.0 * R)), 0, M - 1).astype(np.int64)
+        v = np.clip(np.floor((x @ e2 + R) * M / (2.0 * R)), 0, M - 1).astype(np.int64)
+        means.append(len(x) / len(np.unique(v * M + u)))
+    return float(np.mean(means))
+
+
+def column_window(pos: np.ndarray, centre, R: float, per_column: float, dirs: np.ndarray, largest: int) -> int:
+    """The largest window M (1 .. ``largest``) whose occupied columns hold at least
+    ``per_column`` particles on average along ``dirs`` (``column_counts``): links then join
+    chains of about that many particles instead of mostly seeing past the cloud. The count
+    falls as M grows (finer columns), so M is found by bisection."""
+    if len(pos) == 0 or column_counts(pos, centre, R, 1, dirs) < per_column:
+        return 1
+    lo, hi = 1, max(int(largest), 1)  # column_counts(lo) >= per_column holds throughout
+    if column_counts(pos, centre, R, hi, dirs) >= per_column:
+        return hi
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if column_counts(pos, centre, R, mid, dirs) >= per_column:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
 def doubly_stochastic(P: np.ndarray, tol: float = 1e-9, max_iter: int = 10000) -> np.ndarray:
     """diag(x) P diag(x) for a symmetric non-negative P (float64): every row and column sums
     to 1. Symmetric Sinkhorn-Knopp, x <- x / sqrt(row sums), from x = 1 / sqrt(P 1), to a
@@ -530,7 +574,8 @@ class IlluminationNetwork(Technique):
         lights = bool(self.scene.lights)
         return self.uploads.stages() + [
             Stage("network", self._network, reads=("medium",),
-                  settings=("directions", "direction_seed", "window", "window_at", "half", "phase_norm", "refresh")),
+                  settings=("directions", "direction_seed", "window", "column", "window_at", "half", "phase_norm",
+                            "refresh")),
             Stage("direct", self._direct, reads=("lights",),
                   settings=("light_samples", "light_pass", "light_slices", "light_terms", "light_texels",
                             "light_tolerance"), after=("network", "lights"),
@@ -550,7 +595,7 @@ class IlluminationNetwork(Technique):
         pos, radius, sigma = cloud.centres, cloud.radius, cloud.sigma_t
         n = len(pos)
         D = s["directions"]
-        layout = (n, D, s["direction_seed"], s["window"], s["window_at"], s["half"], s["phase_norm"])
+        layout = (n, D, s["direction_seed"], s["window"], s["column"], s["window_at"], s["half"], s["phase_norm"])
         partial = bool(s["refresh"]) and self._layout == layout
         self._layout = layout
         self._n = n
@@ -564,8 +609,11 @@ class IlluminationNetwork(Technique):
         else:
             # mean extinction of the bounding ball: total sigma_t volume / ball volume
             tau_mean = float((sigma.mean(1) * radius**3).sum()) / self.R**3 if n else 0.0
+            dirs = fibonacci_directions(D, s["direction_seed"])
             self.M = s["window"] or window_rule(s["window_at"] or D, self.R, tau_mean)
-            self.dirs = wp.array(fibonacci_directions(D, s["direction_seed"]), dtype=wp.vec3, device=device)
+            if not s["window"] and s["column"] > 0:  # no finer than the paper's rule, and chains of `column`
+                self.M = column_window(pos, self.centre, self.R, s["column"], dirs[:: max(D // 3, 1)][:3], self.M)
+            self.dirs = wp.array(dirs, dtype=wp.vec3, device=device)
             self.V = wp.full(n * D, -1, dtype=int, device=device)
             self.alpha = wp.zeros(n * D, dtype=wp.vec3, device=device)
             which = np.arange(D)
