@@ -696,7 +696,8 @@ class DepthImpostors(Technique):
             T = self.impostors.res
             dev.launch(shade_texels, self.n_textured * T * T,
                        [self.blocks, self.impostors, self._cloud_light(), phase_fn(self.phase, self.table), eye, widen,
-                        self._textured, self.texel_radiance], device, work=LIGHT_WORK * (len(self.scene.lights) + sky.shape[0]))
+                        self._textured, self.texel_radiance], device,
+                       work=LIGHT_WORK * (len(self.scene.lights) + sky.shape[0]))
         if self.n_instances > self.n_textured:
             n = self._cloud.struct.centres.shape[0]
             for lights, lp, is_sky in ((self.uploads.lights, self.light_pass, 0), (sky, self.sky_pass, 1)):

@@ -478,7 +478,7 @@ def column_window(pos: np.ndarray, centre, R: float, per_column: float, dirs: np
     ``per_column`` particles on average along ``dirs`` (``column_counts``): links then join
     chains of about that many particles instead of mostly seeing past the cloud. The count
     falls as M grows (finer columns), so M is found by bisection."""
-    if len(pos) == 0 or column_counts(pos, centre, R, 1, dirs) < per_column:
+    if len(pos) < per_column:  # one column holds them all: M = 1 is as coarse as a window gets
         return 1
     lo, hi = 1, max(int(largest), 1)  # column_counts(lo) >= per_column holds throughout
     if column_counts(pos, centre, R, hi, dirs) >= per_column:
