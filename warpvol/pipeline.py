@@ -69,7 +69,8 @@ class Bias:
     setting leaves no bias, e.g. light_shafts' block = 1), or, where the limit is infinite,
     against ``factor`` times the value, the difference scaled to the whole bias as an error
     of order ``order`` (|x(v) - x(f v)| / (1 - f^-order)). ``when``: the scene part that must
-    be present for the setting to matter (``"sky"``: a non-black background), or None."""
+    be present for the setting to matter (``"sky"``: a non-black background; ``"multiple"``:
+    the multiple-scattering term on), or None."""
 
     setting: str
     exact: object = None

@@ -285,11 +285,12 @@ def walk_axis(t_next: wp.vec3) -> int:
 
 
 @wp.func
-def lattice_trilinear_vec3(values: wp.array(dtype=wp.vec3), base: int, n: int, lo: wp.vec3, hi: wp.vec3,
-                           x: wp.vec3) -> wp.vec3:
+def lattice_trilinear_vec3(values: wp.array(dtype=wp.vec3), base: int, stride: int, n: int, lo: wp.vec3,
+                           hi: wp.vec3, x: wp.vec3) -> wp.vec3:
     """Trilinear lookup in an n^3 lattice of vec3 with nodes on the corners of [lo, hi]
-    (node (i, j, k) at lo + (i, j, k) (hi - lo) / (n - 1), x fastest, from ``base``);
-    points outside clamp to the boundary."""
+    (node (i, j, k) at lo + (i, j, k) (hi - lo) / (n - 1), x fastest; node q's value at
+    ``base + stride q``, so several lattices can be interleaved); points outside clamp to the
+    boundary."""
     g = wp.cw_div(x - lo, hi - lo) * float(n - 1)
     fx = wp.clamp(g[0], 0.0, float(n - 1))
     fy = wp.clamp(g[1], 0.0, float(n - 1))
@@ -300,11 +301,14 @@ def lattice_trilinear_vec3(values: wp.array(dtype=wp.vec3), base: int, n: int, l
     tx = fx - float(x0)
     ty = fy - float(y0)
     tz = fz - float(z0)
-    i = base + (z0 * n + y0) * n + x0
-    c00 = values[i] * (1.0 - tx) + values[i + 1] * tx
-    c10 = values[i + n] * (1.0 - tx) + values[i + n + 1] * tx
-    c01 = values[i + n * n] * (1.0 - tx) + values[i + n * n + 1] * tx
-    c11 = values[i + n * n + n] * (1.0 - tx) + values[i + n * n + n + 1] * tx
+    i = base + ((z0 * n + y0) * n + x0) * stride
+    sx = stride
+    sy = n * stride
+    sz = n * n * stride
+    c00 = values[i] * (1.0 - tx) + values[i + sx] * tx
+    c10 = values[i + sy] * (1.0 - tx) + values[i + sy + sx] * tx
+    c01 = values[i + sz] * (1.0 - tx) + values[i + sz + sx] * tx
+    c11 = values[i + sz + sy] * (1.0 - tx) + values[i + sz + sy + sx] * tx
     return (c00 * (1.0 - ty) + c10 * ty) * (1.0 - tz) + (c01 * (1.0 - ty) + c11 * ty) * tz
 
 

@@ -75,6 +75,11 @@ from ..physics.lights import Emitter, light_incident
 from ..physics.phase import PhaseParams, PhaseFn, phase_eval, phase_fn, phase_struct, phase_toward
 from ..physics.transmittance import transmittance_rgb
 from ..pipeline import Bias, Quality, Setting, Stage, Technique
+from ..scattering import BIASES as MS_BIASES
+from ..scattering import SETTINGS as MS_SETTINGS
+from ..scattering import MultipleScattering, ScatteredLight, scattered_light
+from ..scattering import check_settings as check_ms_settings
+from ..scattering import leaves_out as ms_leaves_out
 from ..scene.procedural import split_blocks
 from ..shading import reflected, sky_reflected, sky_scattered
 from ..upload import SceneUploads, check_particle_scene, particle_buffers, pinhole, sky_lights
@@ -108,6 +113,7 @@ SETTINGS = {
                                      "0: off"),
     "object_depth": Setting(1, 0, 1, "1: depth impostors (a block's opacity cut where a surface lies inside its "
                                      "depth interval); 0: billboards (a block at its centre plane, as the paper fixes)"),
+    **MS_SETTINGS,
 }
 
 
@@ -261,7 +267,7 @@ def in_scatter(m: LightMap, P: Particles, lights: wp.array(dtype=Emitter), ph: P
 
 @wp.kernel
 def shade_texels(offset: int, B: Blocks, imp: Impostors, cl: CloudLight, pf: PhaseFn, eye: wp.vec3, widen: float,
-                 inst: wp.array(dtype=int), radiance: wp.array(dtype=wp.vec3)):
+                 ms: ScatteredLight, inst: wp.array(dtype=int), radiance: wp.array(dtype=wp.vec3)):
     """Thread (textured instance j, texel k): what the texel's segment scatters toward the
     eye, per unit opacity: albedo (sum_l p E_l T_l + the sky's) at its mid-depth point."""
     tid = wp.tid() + offset
@@ -279,7 +285,7 @@ def shade_texels(offset: int, B: Blocks, imp: Impostors, cl: CloudLight, pf: Pha
         L = in_scatter(cl.m, cl.P, cl.lights, pf.phase, pf.table, x, w, widen, 0)
         if cl.sky.shape[0] > 0:
             L += in_scatter(cl.m_sky, cl.P, cl.sky, pf.phase, pf.table, x, w, 0.0, 1)
-        L = wp.cw_mul(B.albedo[t], L)
+        L = wp.cw_mul(B.albedo[t], L) + scattered_light(ms, B.albedo[t], x)
     radiance[j * B.res * B.res + k] = L  # the layout's T^2 per instance, as Shaded.first
 
 
@@ -301,6 +307,13 @@ def shade_particles(offset: int, B: Blocks, direct: wp.array(dtype=wp.vec3), tra
     if sky != 0:
         acc = sky_scattered(acc, wp.vec3(psum))
     out[i] = out[i] + wp.cw_mul(B.albedo[B.tpl[i]], acc)
+
+
+@wp.kernel
+def scattered_particles(offset: int, B: Blocks, ms: ScatteredLight, out: wp.array(dtype=wp.vec3)):
+    """Instance i: adds albedo R(centre), the light scattered more than once toward the eye."""
+    i = wp.tid() + offset
+    out[i] = out[i] + scattered_light(ms, B.albedo[B.tpl[i]], B.centre[i])
 
 
 @wp.kernel
@@ -460,13 +473,14 @@ class DepthImpostors(Technique):
     SETTINGS = SETTINGS
     QUALITY = Quality(knob="slices", start=2, top=512, order=1, biases=(
         Bias("light_pass", exact=0), Bias("impostor_detail", factor=4, order=1),
-        Bias("light_samples", factor=4, order=1), Bias("sky_samples", factor=4, order=1, when="sky")))
-    LEAVES_OUT = ("multiple scattering",)
+        Bias("light_samples", factor=4, order=1), Bias("sky_samples", factor=4, order=1, when="sky"), *MS_BIASES))
+    LEAVES_OUT = ()
 
     def __init__(self, scene, device, settings, progress=False):
         super().__init__(scene, device, settings, progress)
         check_particle_scene(NAME, scene)
         self.uploads = SceneUploads(self, medium=False)
+        self.multiple = MultipleScattering(self, lambda: self.uploads.surfaces, lambda: self.uploads.lights)
         self._cloud: ParticleBuffers | None = None
         self._template_key: tuple | None = None  # what the impostors were made from
         self.blocks: Blocks | None = None
@@ -489,9 +503,16 @@ class DepthImpostors(Technique):
         self.image = None
         self.gather_tests = 0  # (pixel, instance) pairs the gather looks at: its tiles' lists x their pixels
 
+    def check_settings(self, settings):
+        check_ms_settings(NAME, settings)
+
+    def leaves_out(self) -> list[str]:
+        return [*ms_leaves_out(self.settings), *super().leaves_out()]
+
     def stages(self):
         surfaces = bool(self.scene.surfaces)
         return self.uploads.stages() + [
+            *self.multiple.stages(after=("surfaces", "lights")),
             Stage("blocks", self._blocks, reads=("medium",),
                   settings=("impostor_res", "impostor_detail", "cluster", "light_pass")),
             Stage("light", self._light, reads=("lights", "background"),
@@ -501,7 +522,8 @@ class DepthImpostors(Technique):
             Stage("templates", self._templates, after=("blocks",)),
             Stage("impostors", self._impostors, reads=("camera",), settings=("impostor_detail",),
                   after=("templates",)),
-            Stage("shade", self._shade, reads=("camera",), settings=("widen",), after=("light", "impostors")),
+            Stage("shade", self._shade, reads=("camera",), settings=("widen", "multiple_scattering"),
+                  after=("light", "impostors", "multiple_view")),
             Stage("surfaces_lit", self._surfaces_lit, reads=("camera",), after=("light", "surfaces"),
                   needed=surfaces),
             Stage("gather", self._gather, reads=("camera", "background"), settings=("object_depth",),
@@ -688,7 +710,10 @@ class DepthImpostors(Technique):
         self.texel_radiance = wp.zeros(max(self.n_textured * T * T, 1), dtype=wp.vec3, device=device)
         self.particle_radiance = wp.zeros(max(self.n_instances, 1), dtype=wp.vec3, device=device)
         m_sky, sky = self._sky_args()
-        if not len(self.scene.lights) and not sky.shape[0]:
+        ms = self.multiple.struct()
+        if ms.n > 0:
+            dev.launch(scattered_particles, self.n_instances, [self.blocks, ms, self.particle_radiance], device)
+        if not len(self.scene.lights) and not sky.shape[0] and ms.n == 0:
             return
         if self.n_textured:
             radii = self._cloud.radius
@@ -696,7 +721,7 @@ class DepthImpostors(Technique):
             T = self.impostors.res
             dev.launch(shade_texels, self.n_textured * T * T,
                        [self.blocks, self.impostors, self._cloud_light(), phase_fn(self.phase, self.table), eye, widen,
-                        self._textured, self.texel_radiance], device,
+                        ms, self._textured, self.texel_radiance], device,
                        work=LIGHT_WORK * (len(self.scene.lights) + sky.shape[0]))
         if self.n_instances > self.n_textured:
             n = self._cloud.struct.centres.shape[0]

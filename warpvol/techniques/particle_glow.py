@@ -70,6 +70,11 @@ from ..physics.constants import PI
 from ..physics.lights import DIRECTIONAL, SPOT, ball_mean_inverse_square, spot_falloff
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Bias, Quality, Setting, Stage, Technique
+from ..scattering import BIASES as MS_BIASES
+from ..scattering import SETTINGS as MS_SETTINGS
+from ..scattering import MultipleScattering, ScatteredLight, scattered_light
+from ..scattering import check_settings as check_ms_settings
+from ..scattering import leaves_out as ms_leaves_out
 from ..shading import camera_segment, light_arriving, surface_through_maps
 from ..upload import SceneUploads, pinhole, shadowed_lights
 
@@ -81,7 +86,9 @@ SETTINGS = {
     "shadow_map_res": Setting(256, 4, 8192, "texels per side of each shadow map (cube maps: per face)"),
     "depth_bias": Setting(0.02, 0.0, 1.0e3, "shadow-map depth bias, scene units"),
     "shadow_steps": Setting(32, 1, 1 << 16, "steps toward a light through heterogeneous media"),
-    "glow": Setting(1, 0, 1, "0: the direct sample I_o alone (a single-scattering march through shadow maps)"),
+    "glow": Setting(1, 0, 1, "0: the direct sample I_o alone (a single-scattering march through shadow maps); "
+                             "the glow imitates multiple scattering, so it is added only where "
+                             "multiple_scattering = 0 (the paper's model)"),
     "k_c": Setting(7.0, 0.0, 1.0e4, "equation 3: the nearby particle lies up to k_c cells from the march point"),
     "c1": Setting(0.05, 0.0, 1.0e3, "equation 5: beta = ((1 - d) + c1) c2; c1 keeps beta > 0 where d = 1"),
     "c2": Setting(0.03, 0.0, 1.0e6, "equation 5: beta's scale, per scene unit"),
@@ -100,6 +107,7 @@ SETTINGS = {
                                "as the march points slide with the camera)"),
     "specular": Setting(0.0, 0.0, 1.0e3, "k_s of the specular term the paper dropped (appendix B, equation 8); 0: off"),
     "shininess": Setting(20.0, 1.0, 1.0e4, "Phong exponent n of the specular term"),
+    **MS_SETTINGS,
 }
 
 
@@ -187,7 +195,7 @@ def particle_radiance(gs: Glow, sl: ShadowedLights, c: wp.vec3, normal: wp.vec3,
 
 @wp.kernel
 def march_glow(offset: int, cam: RasterView, m: Media, s: Surfaces, sl: ShadowedLights, gs: Glow,
-               background: wp.vec3, image: wp.array(dtype=wp.vec3)):
+               background: wp.vec3, ms: ScatteredLight, image: wp.array(dtype=wp.vec3)):
     """Per pixel: the march of section 4 over the media segment in front of the nearest
     surface, equation 1 at every step, then the surface (lit through the shadow maps) or the
     background, attenuated."""
@@ -207,7 +215,9 @@ def march_glow(offset: int, cam: RasterView, m: Media, s: Surfaces, sl: Shadowed
                     wi, e, tau = light_arriving(m, sl, l, x, wp.vec3(0.0), gs.shadow_steps)
                     if e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0:
                         src += wp.cw_mul(wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e), transmittance_rgb(tau))
-                if gs.glow != 0 and sl.lights.shape[0] > 0:  # I_s: the nearby particle's light
+                if ms.n > 0:  # the light scattered more than once, solved (in place of the glow)
+                    src += scattered_light(ms, scattering_at(m, x), x)
+                elif gs.glow != 0 and sl.lights.shape[0] > 0:  # I_s: the nearby particle's light
                     cell = cell_of(gs, x)
                     dbar = gs.density[cell]
                     w = gs.weight[cell]
@@ -259,27 +269,38 @@ class ParticleGlow(Technique):
     NAME = NAME
     SETTINGS = SETTINGS
     QUALITY = Quality(knob="steps", start=8, top=8192, order=2, tied={"shadow_steps": 0.25},
-                      biases=(Bias("shadow_map_res", factor=4, order=1),))
-    LEAVES_OUT = ("multiple scattering (the glow imitates some of it)",)
+                      biases=(Bias("shadow_map_res", factor=4, order=1), *MS_BIASES))
+    LEAVES_OUT = ()
 
     def __init__(self, scene, device, settings, progress=False):
         super().__init__(scene, device, settings, progress)
         self.uploads = SceneUploads(self)
+        self.multiple = MultipleScattering(self, lambda: self.uploads.surfaces, lambda: self.uploads.lights,
+                                           lambda: self.uploads.media.struct)
         self.density = self.weight = self.direction = None
         self.g0 = self.gn = None
         self.sl: ShadowedLights | None = None
         self.image = None
 
+    def check_settings(self, settings):
+        check_ms_settings(NAME, settings)
+
+    def leaves_out(self) -> list[str]:
+        if self.settings["multiple_scattering"] == 0 and self.settings["glow"]:
+            return ["multiple scattering (the glow imitates some of it)", *super().leaves_out()]
+        return [*ms_leaves_out(self.settings), *super().leaves_out()]
+
     def stages(self):
         return self.uploads.stages() + [
+            *self.multiple.stages(after=("medium", "surfaces", "lights")),
             Stage("textures", self._textures, settings=("mu", "sigma", "density_cdf", "density_x", "texture_res", "seed",
                                                         "direction_seed", "exponent")),
             Stage("tables", self._tables, settings=("specular", "shininess")),
             Stage("shadow_maps", self._shadow_maps, reads=("lights",), settings=("shadow_map_res", "depth_bias"),
                   after=("surfaces", "lights")),
             Stage("march", self._march, reads=("camera", "background"),
-                  settings=("steps", "shadow_steps", "glow", "k_c", "c1", "c2", "cell", "anchor"),
-                  after=("medium", "textures", "tables", "shadow_maps")),
+                  settings=("steps", "shadow_steps", "glow", "k_c", "c1", "c2", "cell", "anchor", "multiple_scattering"),
+                  after=("medium", "textures", "tables", "shadow_maps", "multiple_view")),
         ]
 
     def _textures(self):
@@ -320,11 +341,13 @@ class ParticleGlow(Technique):
         npix = scene.camera.width * scene.camera.height
         self.image = wp.empty(npix, dtype=wp.vec3, device=self.device)
         dev.launch(march_glow, npix, [camera_view(pinhole(scene.camera)), u.media.struct, u.surfaces, self.sl,
-                                      self.glow_struct(), wp.vec3(*scene.background), self.image], self.device)
+                                      self.glow_struct(), wp.vec3(*scene.background), self.multiple.struct(),
+                                      self.image], self.device)
 
     def diagnostics(self) -> dict:
-        """``density``: the particle-density texture d (texels), as sampled by the march."""
-        return {"density": self.density.numpy()}
+        """``density``: the particle-density texture d (texels), as sampled by the march; with
+        multiple scattering, the orders iterated and the tail's ratio (``scattering``)."""
+        return {"density": self.density.numpy(), **self.multiple.diagnostics()}
 
     def output(self):
         return self.image

@@ -39,6 +39,11 @@ from ..physics.constants import INF, RAY_EPS
 from ..physics.lights import Emitter, light_incident, step_mean_irradiance
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Bias, Quality, Setting, SettingsError, Stage, Technique
+from ..scattering import BIASES as MS_BIASES
+from ..scattering import SETTINGS as MS_SETTINGS
+from ..scattering import MultipleScattering, ScatteredLight, scattered_light, scattered_on_surface
+from ..scattering import check_settings as check_ms_settings
+from ..scattering import leaves_out as ms_leaves_out
 from ..shading import (camera_segment, light_transmittance, marched_optical_depth, reflected, sky_reflected,
                        sky_scattered, surface_direct)
 from ..upload import SceneUploads, light_structs, lights_array, pinhole, sky_light_structs
@@ -53,6 +58,7 @@ SETTINGS = {
     "shadow_grid": Setting(0, 0, 512, "nodes per axis of the baked light-transmittance volume; 0 = march to the lights"),
     "sky_samples": Setting(32, 0, 4096, "directions the sky's light (the background) is gathered from at every step "
                                         "and surface point; 0: leave it out"),
+    **MS_SETTINGS,
 }
 
 
@@ -100,7 +106,7 @@ def light_at(m: Media, s: Surfaces, l: int, x: wp.vec3, wi: wp.vec3, dist: float
         if occluded(s, x, wi, dist):
             return wp.vec3(0.0)
         g = st.shadow_grid
-        return lattice_trilinear_vec3(baked, l * g * g * g, g, st.grid_lo, st.grid_hi, x)
+        return lattice_trilinear_vec3(baked, l * g * g * g, 1, g, st.grid_lo, st.grid_hi, x)
     return light_transmittance(m, s, x, wi, dist, 0, rng, steps)
 
 
@@ -147,9 +153,11 @@ def sky_on_surface(m: Media, s: Surfaces, sky: Sky, p: wp.vec3, n: wp.vec3, wo: 
 
 @wp.kernel
 def march_single_scattering(offset: int, cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Emitter),
-                            sky: Sky, st: MarchSettings, baked: wp.array(dtype=wp.vec3), image: wp.array(dtype=wp.vec3)):
+                            sky: Sky, st: MarchSettings, baked: wp.array(dtype=wp.vec3), ms: ScatteredLight,
+                            image: wp.array(dtype=wp.vec3)):
     """Per pixel: the march over the scene's lights and the sky's directions (none: the sky's
-    light left out), then the surface or the background, attenuated."""
+    light left out) and the light scattered more than once (``ms``; none: left out), then the
+    surface or the background, attenuated."""
     tid = wp.tid() + offset
     px = tid % cam.width
     py = tid / cam.width
@@ -177,6 +185,8 @@ def march_single_scattering(offset: int, cam: RasterView, m: Media, s: Surfaces,
                         inscatter += wp.cw_mul(wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e), tl)
                 if sky.directions.shape[0] > 0:
                     inscatter += sky_in_scatter(m, s, sky, x, d, st, baked)
+                if ms.n > 0:
+                    inscatter += scattered_light(ms, scattering_at(m, x), x)
                 f = step_integral_rgb(sig, dt)
                 L += wp.cw_mul(wp.cw_mul(tr, inscatter), f)
                 tr = wp.cw_mul(tr, transmittance_rgb(sig * dt))
@@ -184,6 +194,7 @@ def march_single_scattering(offset: int, cam: RasterView, m: Media, s: Surfaces,
         nf = wp.where(wp.dot(n, d) < 0.0, n, -n)
         p = o + t_surf * d
         Ls = surface_direct(m, s, lights, p, nf, -d, s.material[face], 0, rng, st.shadow_steps)
+        Ls += scattered_on_surface(ms, s.material[face], p, nf, -d)
         if sky.directions.shape[0] > 0:
             Ls += sky_on_surface(m, s, sky, p, nf, -d, face, st, baked)
         L += wp.cw_mul(tr, Ls)
@@ -198,16 +209,26 @@ class Raymarch(Technique):
     NAME = NAME
     SETTINGS = SETTINGS
     QUALITY = Quality(knob="steps", start=8, top=1024, order=2, tied={"shadow_steps": 1},
-                      biases=(Bias("sky_samples", factor=4, order=1, when="sky"), Bias("shadow_grid", exact=0)))
-    LEAVES_OUT = ("multiple scattering",)
+                      biases=(Bias("sky_samples", factor=4, order=1, when="sky"), Bias("shadow_grid", exact=0),
+                              *MS_BIASES))
+    LEAVES_OUT = ()
 
     def __init__(self, scene, device, settings, progress=False):
         super().__init__(scene, device, settings, progress)
         self.uploads = SceneUploads(self)
+        self.multiple = MultipleScattering(self, lambda: self.uploads.surfaces, lambda: self.uploads.lights,
+                                           lambda: self.uploads.media.struct)
         self.baked = wp.zeros(1, dtype=wp.vec3, device=device)
         self.image = None
 
+    def leaves_out(self) -> list[str]:
+        return [*ms_leaves_out(self.settings), *super().leaves_out()]
+
+    def diagnostics(self) -> dict:
+        return self.multiple.diagnostics()
+
     def check_settings(self, settings):
+        check_ms_settings(NAME, settings)
         if settings["shadow_grid"] == 1:
             raise SettingsError(f"{NAME}: setting shadow_grid=1 has no interior (allowed: 0 or 2..512)")
 
@@ -235,8 +256,9 @@ class Raymarch(Technique):
             Stage("light_volume", self._bake, reads=("medium", "lights", "background"),
                   settings=("shadow_grid", "shadow_steps", "sky_samples"),
                   after=("medium", "lights"), needed=self._bakes()),
+            *self.multiple.stages(after=("medium", "surfaces", "lights")),
             Stage("march", self._march, reads=("camera", "background"), settings=tuple(SETTINGS),
-                  after=("medium", "surfaces", "lights", "light_volume")),
+                  after=("medium", "surfaces", "lights", "light_volume", "multiple_view")),
         ]
 
     def _bake(self):
@@ -255,7 +277,8 @@ class Raymarch(Technique):
         sky.first = len(scene.lights)
         sky.radiance = wp.vec3(*scene.background)
         dev.launch(march_single_scattering, npix, [camera_view(pinhole(scene.camera)), u.media.struct, u.surfaces,
-                                                   u.lights, sky, self._march_settings(), self.baked, self.image],
+                                                   u.lights, sky, self._march_settings(), self.baked,
+                                                   self.multiple.struct(), self.image],
                    self.device)
 
     def output(self):

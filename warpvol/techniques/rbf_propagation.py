@@ -78,6 +78,11 @@ from ..physics.lights import DIRECTIONAL, Emitter, light_incident
 from ..physics.phase import PhaseParams, phase_eval, phase_struct
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Quality, Setting, Stage, Technique
+from ..scattering import BIASES as MS_BIASES
+from ..scattering import SETTINGS as MS_SETTINGS
+from ..scattering import MultipleScattering, ScatteredLight, scattered_light
+from ..scattering import check_settings as check_ms_settings
+from ..scattering import leaves_out as ms_leaves_out
 from ..scene.model import RBFMedium
 from ..shading import reflected
 from ..upload import MediaBuffers, SceneUploads, medium_bounds, pinhole, scene_bounds
@@ -91,6 +96,7 @@ SETTINGS = {
     "rule": Setting(1, 0, 1, "0: the paper's equation 6 as printed; 1: corrected, optical depth in physical units"),
     "wavefront": Setting(1, 0, 1, "1: update only the wavefront shell per step; 0: sweep the whole grid"),
     "iterations": Setting(0, 0, 1 << 16, "whole-grid sweeps when wavefront = 0 (0: 3 x grid)"),
+    **MS_SETTINGS,
 }
 
 
@@ -438,7 +444,7 @@ def surface_optical_depth(opv: wp.array(dtype=wp.vec3), lights: int, l: int, v: 
 
 @wp.kernel
 def march_volumes(offset: int, cam: RasterView, s: Surfaces, lights: wp.array(dtype=Emitter), vols: Volumes,
-                  steps: int, background: wp.vec3, image: wp.array(dtype=wp.vec3)):
+                  steps: int, background: wp.vec3, ms: ScatteredLight, image: wp.array(dtype=wp.vec3)):
     tid = wp.tid() + offset
     o, d = pixel_ray(cam, tid)
     ev = vols.ev
@@ -472,7 +478,9 @@ def march_volumes(offset: int, cam: RasterView, s: Surfaces, lights: wp.array(dt
                     tl = transmittance_rgb(cell_blend(opv, n_lights, l, first, step, t))
                     li += phase_eval(phase, phase_table, wp.dot(d, wi)) * wp.cw_mul(e, tl)
                 f = step_integral_rgb(sig, seg)
-                L += wp.cw_mul(wp.cw_mul(tr, wp.cw_mul(wp.cw_mul(sig, albedo), li)), f)
+                sig_s = wp.cw_mul(sig, albedo)
+                src = wp.cw_mul(sig_s, li) + scattered_light(ms, sig_s, x)
+                L += wp.cw_mul(wp.cw_mul(tr, src), f)
                 tr = wp.cw_mul(tr, transmittance_rgb(sig * seg))
     if hit:
         nf = wp.where(wp.dot(n, d) < 0.0, n, -n)
@@ -493,15 +501,22 @@ class RBFPropagation(Technique):
 
     NAME = NAME
     SETTINGS = SETTINGS
-    QUALITY = Quality(knob="grid", start=8, top=256, order=1, tied={"steps": 4})
-    LEAVES_OUT = ("multiple scattering",)
+    QUALITY = Quality(knob="grid", start=8, top=256, order=1, tied={"steps": 4}, biases=MS_BIASES)
+    LEAVES_OUT = ()
 
     def __init__(self, scene, device, settings, progress=False):
         super().__init__(scene, device, settings, progress)
         self.uploads = SceneUploads(self, medium=False)  # the EV replaces the media's own buffers
+        self.multiple = MultipleScattering(self, lambda: self.uploads.surfaces, lambda: self.uploads.lights)
         self.ev = self.opv = self.image = None
         self.volume = None
         self.launches = 0  # propagation launches of the last propagate stage
+
+    def check_settings(self, settings):
+        check_ms_settings(NAME, settings)
+
+    def leaves_out(self) -> list[str]:
+        return [*ms_leaves_out(self.settings), *super().leaves_out()]
 
     def _volume(self) -> Volume:
         lo, hi = volume_bounds(self.scene)
@@ -516,8 +531,9 @@ class RBFPropagation(Technique):
             Stage("inject", self._inject, reads=("medium", "surfaces"), settings=("grid",)),  # the density stage
             Stage("propagate", self._propagate, reads=("lights",), settings=("rule", "wavefront", "iterations"),
                   after=("inject", "lights"), needed=bool(self.scene.lights)),
+            *self.multiple.stages(after=("surfaces", "lights")),
             Stage("march", self._march, reads=("camera", "background", "medium"), settings=("steps",),
-                  after=("inject", "propagate", "surfaces", "lights")),
+                  after=("inject", "propagate", "surfaces", "lights", "multiple_view")),
         ]
 
     def _inject(self):
@@ -605,7 +621,8 @@ class RBFPropagation(Technique):
         vols.ev, vols.opv, vols.v = self.ev, self.opv, self.volume
         vols.albedo, vols.phase, vols.phase_table = albedo, phase, phase_table
         dev.launch(march_volumes, npix, [camera_view(pinhole(cam)), u.surfaces, u.lights, vols,
-                                         self.settings["steps"], wp.vec3(*scene.background), self.image], self.device)
+                                         self.settings["steps"], wp.vec3(*scene.background), self.multiple.struct(),
+                                         self.image], self.device)
 
     def output(self):
         return self.image

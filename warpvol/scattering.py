@@ -1,0 +1,464 @@
+"""Multiple scattering for every marcher: the light scattered more than once, solved order by
+order on a lattice of nodes and directions, and read back by a march as one lookup a step.
+
+A marcher computes single scattering exactly (its lights, and the sky where it gathers it).
+What it leaves out is the in-scattered radiance of the light that has already scattered,
+S_ms(x, wo) = sigma_s(x) int p(w . wo) L_{>=1}(x, w) dw, with L_{>=1} the radiance of all
+light scattered one or more times. This module solves for L_{>=1} by source iteration (the
+Neumann series of the radiative transfer equation, one order of scattering per pass) on an
+n^3 lattice of nodes over the media's bounds and D directions (a Fibonacci set, 4 pi / D sr
+each), the discrete-ordinates method (Chandrasekhar 1960; Fattal 2009 for graphics), with
+long characteristics:
+
+* order 1's source at node x toward w_d: Q_1 = sum_l sigma_s p(-w_l . w_d) E_l T_l, the
+  lights' direct light (shadow rays through the media and past the surfaces; a point light's
+  1/d^2 averaged over a ball of half a cell, finite at the light), plus the sky's light
+  scattered once (the background carried to the node along each w_d, through the media and
+  blocked by surfaces);
+* transport: L_k(x, w_d) = int_0^t T(x, x - s w_d) Q_k(x - s w_d, w_d) ds, marched back along
+  w_d to the lattice's boundary or the first surface, one cell a step, with sigma_t and Q
+  interpolated trilinearly and each step integrated exactly for constant coefficients;
+* scattering: Q_{k+1}(x, w_d) = sigma_s(x) sum_d' P[d, d'] L_k(x, w_d'), the phase function
+  as a D x D matrix whose rows sum to 1 (energy kept exactly at albedo 1, the white furnace);
+* orders are summed until the ratio rho of successive orders' energies settles (to 1%);
+  the rest of the series is the geometric tail L_k rho / (1 - rho), as Hillaire (EGSR 2020)
+  sums the orders of multiple scattering in an atmosphere.
+
+For the camera, every node holds R(x) = sum_d p(w_d . wo) L_{>=1}(x, w_d) / sum_d p(w_d . wo),
+wo toward the camera's eye: a march adds sigma_s(x) R(x) to its in-scattering at each step
+(``scattered_light``), trilinearly, one lookup. Moving the camera re-runs only that last
+bake. Surfaces block the scattered light; where a characteristic ends on one, the radiance
+it starts with is what the surface reflects of the lights' direct light and of the sky (light
+reflected by a surface into the media, once), and a march's visible surface reflects the
+scattered light arriving at it (``scattered_on_surface``, inside the lattice). What is left
+out is light reflected more than once between surfaces and media (a room's interreflection).
+Without surfaces, everything converges to the all-orders answer as the nodes and directions
+rise (error ~ 1/n, 1/D).
+
+The setting ``multiple_scattering`` is n (0: single scattering, the papers' own models);
+``ms_directions`` is D.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from . import device as dev
+from .geometry.intersect import ray_box
+from .geometry.mesh import Surfaces, surface_hit
+from .physics.brdf import Material
+from .media.grid import lattice_trilinear_vec3
+from .media.volume import Media, medium_sigma_t
+from .physics.constants import INF, PI, RAY_EPS
+from .physics.lights import DIRECTIONAL, Emitter, ball_mean_inverse_square, light_incident
+from .physics.phase import phase_eval
+from .physics.sphere import fibonacci_directions
+from .physics.transmittance import step_integral_rgb, transmittance_rgb
+from .pipeline import Bias, Setting, SettingsError, Stage
+from .shading import light_transmittance, reflected, surface_direct
+from .upload import MediaBuffers
+
+dev.kernel_module(__name__)
+
+SETTINGS = {
+    "multiple_scattering": Setting(8, 0, 128, "nodes per axis of the lattice light scattered more than once is "
+                                               "solved on (orders 2 and up); 0: single scattering only, the "
+                                               "paper's model"),
+    "ms_directions": Setting(16, 6, 1024, "directions of the multiple-scattering lattice's radiance (a Fibonacci "
+                                          "set); error ~ 1/directions"),
+}
+
+#: What ``target_error`` measures of the two settings: each doubled, the difference scaled to
+#: the whole bias as an error of order 1 (the lattice's interpolation and step are first order
+#: where the media have edges).
+BIASES = (Bias("multiple_scattering", factor=2, order=1, when="multiple"),
+          Bias("ms_directions", factor=2, order=1, when="multiple"))
+
+#: What a technique leaves out with the term on (and the one it does not have without it).
+LEFT_OUT_WITH = ("light reflected more than once between surfaces and media (multiple scattering itself is "
+                 "approximated on a lattice: multiple_scattering, ms_directions)")
+LEFT_OUT_WITHOUT = "multiple scattering"
+
+MAX_ORDERS = 64  # source iterations before the geometric tail, at most
+SETTLED = 0.01  # the ratio of successive orders counts as settled when it changes by less than this
+MAX_RATIO = 0.995  # rho above this is taken as this in the tail (albedo 1 in an unbounded medium)
+
+
+@wp.struct
+class Lattice:
+    """n^3 nodes on the corners of [lo, hi] and D directions: the solver's unknowns."""
+
+    n: int
+    lo: wp.vec3
+    hi: wp.vec3
+    step: float  # transport step length: one cell
+    cell: float  # the half cell a point light's 1/d^2 is averaged over
+    directions: wp.array(dtype=wp.vec3)  # unit, the direction the radiance travels
+
+
+@wp.struct
+class ScatteredLight:
+    """What a march reads: R(x), the multiply scattered radiance weighted by the phase function
+    toward the camera (``scattered_light``); n = 0: none (single scattering)."""
+
+    n: int
+    lo: wp.vec3
+    hi: wp.vec3
+    values: wp.array(dtype=wp.vec3)
+    field: wp.array(dtype=wp.vec3)  # L_{>=1}(x, w_d), n^3 x D, for surfaces
+    directions: wp.array(dtype=wp.vec3)
+
+
+@wp.func
+def node_position(lat: Lattice, q: int) -> wp.vec3:
+    n = lat.n
+    ijk = wp.vec3(float(q % n), float((q / n) % n), float(q / (n * n)))
+    return lat.lo + wp.cw_mul(lat.hi - lat.lo, ijk / float(n - 1))
+
+
+@wp.func
+def scattered_light(sl: ScatteredLight, sigma_s: wp.vec3, x: wp.vec3) -> wp.vec3:
+    """sigma_s(x) R(x): the in-scattered radiance of the light scattered once or more at x toward
+    the camera, per unit length (added to a march's in-scattering); zero without the term."""
+    if sl.n == 0:
+        return wp.vec3(0.0)
+    return wp.cw_mul(sigma_s, lattice_trilinear_vec3(sl.values, 0, 1, sl.n, sl.lo, sl.hi, x))
+
+
+@wp.func
+def scattered_on_surface(sl: ScatteredLight, mat: Material, p: wp.vec3, n: wp.vec3, wo: wp.vec3) -> wp.vec3:
+    """What a surface at p (normal n facing wo) reflects toward wo of the light the media have
+    scattered: sum_d f cos L_{>=1}(p, w_d) 4 pi / D over the directions arriving from above
+    it; zero without the term or outside the lattice."""
+    out = wp.vec3(0.0)
+    if sl.n == 0:
+        return out
+    if p[0] < sl.lo[0] or p[1] < sl.lo[1] or p[2] < sl.lo[2] or p[0] > sl.hi[0] or p[1] > sl.hi[1] or p[2] > sl.hi[2]:
+        return out
+    D = sl.directions.shape[0]
+    dw = 4.0 * PI / float(D)
+    for d in range(D):
+        wi = -sl.directions[d]
+        c = wp.dot(n, wi)
+        if c > 0.0:
+            L = lattice_trilinear_vec3(sl.field, d, D, sl.n, sl.lo, sl.hi, p)
+            out += reflected(mat, n, wo, wi, c, L * dw, wp.vec3(1.0))
+    return out
+
+
+@wp.kernel
+def bake_scattering(offset: int, m: Media, lat: Lattice, sigma_t: wp.array(dtype=wp.vec3),
+                    sigma_s: wp.array(dtype=wp.vec3)):
+    """sigma_t (all media) and each medium's sigma_s at every node (medium-major)."""
+    q = wp.tid() + offset
+    n3 = lat.n * lat.n * lat.n
+    x = node_position(lat, q)
+    tot = wp.vec3(0.0)
+    for i in range(m.count):
+        sig = medium_sigma_t(m, i, x)
+        tot += sig
+        sigma_s[i * n3 + q] = wp.cw_mul(sig, m.albedo[i])
+    sigma_t[q] = tot
+
+
+@wp.kernel
+def phase_matrix(offset: int, m: Media, directions: wp.array(dtype=wp.vec3), out: wp.array(dtype=float)):
+    """Row (medium i, direction d) of P: p_i(w_d . w_d') over d', scaled to sum to 1."""
+    row = wp.tid() + offset
+    D = directions.shape[0]
+    i = row / D
+    d = row % D
+    total = float(0.0)
+    for e in range(D):
+        total += phase_eval(m.phase[i], m.phase_table, wp.dot(directions[d], directions[e]))
+    for e in range(D):
+        out[row * D + e] = phase_eval(m.phase[i], m.phase_table, wp.dot(directions[d], directions[e])) / total
+
+
+@wp.kernel
+def characteristics(offset: int, m: Media, s: Surfaces, lights: wp.array(dtype=Emitter), lat: Lattice,
+                    sky: wp.vec3, shadow_steps: int, lengths: wp.array(dtype=float), ends: wp.array(dtype=wp.vec3)):
+    """How far back along w_d node q sees, to the lattice's boundary or the first surface, and
+    the radiance arriving from there before any scattering in the media: the sky, or what the
+    first surface on the way (inside the lattice or beyond it) reflects toward w_d of the
+    lights' direct light and of the sky (Lambertian, the sky's visibility taken along the normal)."""
+    tid = wp.tid() + offset
+    D = lat.directions.shape[0]
+    q = tid / D
+    x = node_position(lat, q)
+    w = lat.directions[tid % D]
+    back = -w
+    a, b = ray_box(x, back, lat.lo, lat.hi)
+    t = wp.max(b, 0.0)
+    hit, t_hit, nrm, face = surface_hit(s, x, back, INF)
+    end = sky
+    if hit:  # inside the lattice or beyond it (where no medium is)
+        t = wp.min(t, t_hit)
+        p = x + t_hit * back
+        nf = wp.where(wp.dot(nrm, w) > 0.0, nrm, -nrm)
+        rng = wp.uint32(0)  # unused: transmittance is marched
+        mat = s.material[face]
+        end = surface_direct(m, s, lights, p, nf, w, mat, 0, rng, shadow_steps)
+        if wp.max(sky) > 0.0:  # the sky's, as a Lambertian surface reflects it, seen through the media along n
+            up = light_transmittance(m, s, p + RAY_EPS * nf, nf, INF, 0, rng, shadow_steps)
+            end += wp.cw_mul(wp.cw_mul(mat.diffuse, sky), up)
+    lengths[tid] = t
+    ends[tid] = end
+
+
+@wp.kernel
+def light_source(offset: int, m: Media, s: Surfaces, lights: wp.array(dtype=Emitter), lat: Lattice,
+                 sigma_s: wp.array(dtype=wp.vec3), phase_count: int, shadow_steps: int, q_out: wp.array(dtype=wp.vec3)):
+    """Q_1 of the lights at node q for every direction: sum_l sigma_s p(-w_l . w_d) E_l T_l."""
+    q = wp.tid() + offset
+    D = lat.directions.shape[0]
+    n3 = lat.n * lat.n * lat.n
+    x = node_position(lat, q)
+    rng = wp.uint32(0)  # unused: transmittance is marched
+    for d in range(D):
+        q_out[q * D + d] = wp.vec3(0.0)
+    for l in range(lights.shape[0]):
+        wi, dist, e = light_incident(lights[l], x)
+        if lights[l].kind != DIRECTIONAL:
+            e = e * (dist * dist) * ball_mean_inverse_square(lat.cell, dist)  # finite at the light
+        if wp.max(e) > 0.0:
+            et = wp.cw_mul(e, light_transmittance(m, s, x, wi, dist, 0, rng, shadow_steps))
+            if wp.max(et) > 0.0:
+                for i in range(phase_count):
+                    sig = sigma_s[i * n3 + q]
+                    if wp.max(sig) > 0.0:
+                        se = wp.cw_mul(sig, et)
+                        for d in range(D):
+                            ph = phase_eval(m.phase[i], m.phase_table, -wp.dot(wi, lat.directions[d]))
+                            q_out[q * D + d] = q_out[q * D + d] + ph * se
+
+
+@wp.kernel
+def transport(offset: int, lat: Lattice, sigma_t: wp.array(dtype=wp.vec3), source: wp.array(dtype=wp.vec3),
+              lengths: wp.array(dtype=float), ends: wp.array(dtype=wp.vec3), with_source: int,
+              out: wp.array(dtype=wp.vec3)):
+    """L(x, w_d) = int T Q ds back along w_d (one cell a step, exact per step); without a source
+    (``with_source`` = 0), the radiance at the characteristic's end (``ends``) attenuated."""
+    tid = wp.tid() + offset
+    D = lat.directions.shape[0]
+    q = tid / D
+    d = tid % D
+    x = node_position(lat, q)
+    back = -lat.directions[d]
+    t_end = lengths[tid]
+    L = wp.vec3(0.0)
+    tr = wp.vec3(1.0)
+    if t_end > 0.0:
+        steps = wp.max(int(wp.ceil(t_end / lat.step)), 1)
+        dt = t_end / float(steps)
+        for k in range(steps):
+            xm = x + ((float(k) + 0.5) * dt) * back
+            sig = lattice_trilinear_vec3(sigma_t, 0, 1, lat.n, lat.lo, lat.hi, xm)
+            if with_source != 0:
+                src = lattice_trilinear_vec3(source, d, D, lat.n, lat.lo, lat.hi, xm)
+                L += wp.cw_mul(wp.cw_mul(tr, src), step_integral_rgb(sig, dt))
+            tr = wp.cw_mul(tr, transmittance_rgb(sig * dt))
+    if with_source == 0:
+        L = wp.cw_mul(tr, ends[tid])
+    out[tid] = L
+
+
+@wp.kernel
+def scatter(offset: int, lat: Lattice, sigma_s: wp.array(dtype=wp.vec3), P: wp.array(dtype=float), phase_count: int,
+            L: wp.array(dtype=wp.vec3), add: int, q_out: wp.array(dtype=wp.vec3)):
+    """Q(x, w_d) = sum_i sigma_s,i(x) sum_d' P_i[d, d'] L(x, w_d') (``add``: onto q_out)."""
+    tid = wp.tid() + offset
+    D = lat.directions.shape[0]
+    q = tid / D
+    d = tid % D
+    n3 = lat.n * lat.n * lat.n
+    acc = wp.vec3(0.0)
+    for i in range(phase_count):
+        sig = sigma_s[i * n3 + q]
+        if wp.max(sig) > 0.0:
+            row = (i * D + d) * D
+            s = wp.vec3(0.0)
+            for e in range(D):
+                s += P[row + e] * L[q * D + e]
+            acc += wp.cw_mul(sig, s)
+    if add != 0:
+        acc += q_out[tid]
+    q_out[tid] = acc
+
+
+@wp.kernel
+def add_order(offset: int, L: wp.array(dtype=wp.vec3), scale: wp.vec3, total: wp.array(dtype=wp.vec3)):
+    tid = wp.tid() + offset
+    total[tid] = total[tid] + wp.cw_mul(L[tid], scale)
+
+
+@wp.kernel
+def toward_eye(offset: int, m: Media, lat: Lattice, sigma_s: wp.array(dtype=wp.vec3), phase_count: int,
+               L: wp.array(dtype=wp.vec3), eye: wp.vec3, out: wp.array(dtype=wp.vec3)):
+    """R(x) = sum_d p(w_d . wo) L(x, w_d) / sum_d p(w_d . wo), wo toward the eye; the media's
+    phase functions mixed by their sigma_s at the node (none there: isotropic)."""
+    q = wp.tid() + offset
+    D = lat.directions.shape[0]
+    n3 = lat.n * lat.n * lat.n
+    x = node_position(lat, q)
+    wo = eye - x
+    if wp.length(wo) > 0.0:
+        wo = wp.normalize(wo)
+    num = wp.vec3(0.0)
+    weight = wp.vec3(0.0)
+    for i in range(phase_count):
+        sig = sigma_s[i * n3 + q]
+        if wp.max(sig) > 0.0:
+            s = wp.vec3(0.0)
+            den = float(0.0)
+            for d in range(D):
+                ph = phase_eval(m.phase[i], m.phase_table, wp.dot(lat.directions[d], wo))
+                s += ph * L[q * D + d]
+                den += ph
+            num += wp.cw_mul(sig, s / wp.max(den, 1.0e-30))
+            weight += sig
+    if wp.max(weight) > 0.0:
+        out[q] = wp.cw_div(num, wp.max(weight, wp.vec3(1.0e-30)))
+    else:
+        s = wp.vec3(0.0)
+        for d in range(D):
+            s += L[q * D + d]
+        out[q] = s / float(D)
+
+
+def check_settings(technique: str, settings: dict) -> None:
+    if settings["multiple_scattering"] == 1:
+        raise SettingsError(f"{technique}: setting multiple_scattering=1 has no interior (allowed: 0 or 2..128)")
+
+
+def leaves_out(settings: dict) -> tuple[str, ...]:
+    """What a marcher's model leaves out with these settings."""
+    return (LEFT_OUT_WITH,) if settings["multiple_scattering"] else (LEFT_OUT_WITHOUT,)
+
+
+class MultipleScattering:
+    """The solver's buffers and stages for one technique (see the module docstring).
+
+    ``media``: a callable giving the technique's ``Media`` struct, or None (the solver then
+    uploads the scene's media itself); ``surfaces`` and ``lights``: callables giving the
+    uploaded ``Surfaces`` struct and lights array. ``stages()`` are ``multiple`` (the solve:
+    reads the medium, lights, surfaces and sky) and ``multiple_view`` (R toward the camera);
+    a march lists ``multiple_view`` in its ``after`` and passes ``struct()`` to its kernel."""
+
+    def __init__(self, technique, surfaces, lights, media=None):
+        self.t = technique
+        self._surfaces, self._lights, self._media = surfaces, lights, media
+        self._own_media = None
+        self.L = None  # L_{>=1}: n^3 x D
+        self.view = None
+        self.orders = 0  # orders iterated before the tail
+        self.ratio = np.zeros(3)  # the last ratio of successive orders
+        self.sigma_s = None
+
+    @property
+    def n(self) -> int:
+        return self.t.settings["multiple_scattering"] if self.t.scene.media else 0
+
+    def stages(self, after: tuple[str, ...]) -> list[Stage]:
+        needed = self.n > 0
+        return [
+            Stage("multiple", self._solve, reads=("medium", "lights", "surfaces", "background"),
+                  settings=("multiple_scattering", "ms_directions"), after=after, needed=needed),
+            Stage("multiple_view", self._view, reads=("camera",), settings=("multiple_scattering",),
+                  after=("multiple",), needed=needed),
+        ]
+
+    def media_struct(self) -> Media:
+        if self._media is not None:
+            return self._media()
+        if self._own_media is None or self._own_media[0] is not self.t.scene.media:
+            self._own_media = (self.t.scene.media, MediaBuffers(self.t.scene, self.t.device))
+        return self._own_media[1].struct
+
+    def _lattice(self, m: Media) -> Lattice:
+        n, D = self.n, self.t.settings["ms_directions"]
+        lat = Lattice()
+        lat.n = n
+        lo, hi = np.array(m.all_min, np.float64), np.array(m.all_max, np.float64)
+        pad = 1.0e-4 * max(float(np.max(hi - lo)), 1.0e-6)
+        lat.lo, lat.hi = wp.vec3(*(lo - pad)), wp.vec3(*(hi + pad))
+        spacing = (hi - lo + 2 * pad) / (n - 1)
+        lat.step = float(np.min(spacing))
+        lat.cell = 0.5 * float(np.linalg.norm(spacing))
+        lat.directions = wp.array(fibonacci_directions(D), dtype=wp.vec3, device=self.t.device)
+        return lat
+
+    def _solve(self):
+        device, scene = self.t.device, self.t.scene
+        m = self.media_struct()
+        lat = self._lattice(m)
+        self.lattice = lat
+        n3, D, M = lat.n**3, lat.directions.shape[0], len(scene.media)
+        size = n3 * D
+        sigma_t = wp.empty(n3, dtype=wp.vec3, device=device)
+        self.sigma_s = wp.empty(n3 * M, dtype=wp.vec3, device=device)
+        dev.launch(bake_scattering, n3, [m, lat, sigma_t, self.sigma_s], device, work=8.0 * M)
+        P = wp.empty(M * D * D, dtype=float, device=device)
+        dev.launch(phase_matrix, M * D, [m, lat.directions, P], device, work=2.0 * D)
+        lengths = wp.empty(size, dtype=float, device=device)
+        ends = wp.empty(size, dtype=wp.vec3, device=device)
+        lights = self._lights()
+        shadow_steps = max(2 * lat.n, 16)
+        dev.launch(characteristics, size, [m, self._surfaces(), lights, lat, wp.vec3(*scene.background), shadow_steps,
+                                           lengths, ends], device, work=4.0 + lights.shape[0])
+        source = wp.empty(size, dtype=wp.vec3, device=device)
+        dev.launch(light_source, n3, [m, self._surfaces(), lights, lat, self.sigma_s, M, shadow_steps, source],
+                   device, work=max(1, lights.shape[0]) * (4.0 * lat.n + D))
+        L = wp.empty(size, dtype=wp.vec3, device=device)
+        march = 2.0 * lat.n
+        if any(c > 0.0 for c in scene.background) or scene.surfaces:
+            # the sky's light and the surfaces' reflected direct light, scattered once, join order 1's source
+            dev.launch(transport, size, [lat, sigma_t, source, lengths, ends, 0, L], device, work=march)
+            dev.launch(scatter, size, [lat, self.sigma_s, P, M, L, 1, source], device, work=M * D)
+        total = wp.zeros(size, dtype=wp.vec3, device=device)
+        one = wp.vec3(1.0, 1.0, 1.0)
+        previous, ratio, last = None, np.zeros(3), None
+        for k in range(1, MAX_ORDERS + 1):
+            dev.launch(transport, size, [lat, sigma_t, source, lengths, ends, 1, L], device, work=march)
+            dev.launch(add_order, size, [L, one, total], device)
+            energy = L.numpy().reshape(-1, 3).sum(axis=0, dtype=np.float64)
+            self.orders = k
+            if previous is not None:
+                r = np.where(previous > 0.0, energy / np.maximum(previous, 1e-300), 0.0)
+                if np.all(energy <= 1.0e-6 * total_energy) or np.all(np.abs(r - ratio) <= SETTLED * np.maximum(r, 1e-12)):
+                    ratio = r
+                    break
+                ratio = r
+            previous = energy
+            total_energy = total.numpy().reshape(-1, 3).sum(axis=0, dtype=np.float64)
+            if not np.any(energy > 0.0):
+                break
+            dev.launch(scatter, size, [lat, self.sigma_s, P, M, L, 0, source], device, work=M * D)
+        self.ratio = np.clip(ratio, 0.0, MAX_RATIO)
+        if np.any(self.ratio > 0.0):  # the geometric tail of the orders not iterated
+            tail = self.ratio / (1.0 - self.ratio)
+            dev.launch(add_order, size, [L, wp.vec3(*tail), total], device)
+        self.L = total
+        self._m = m
+
+    def _view(self):
+        lat = self.lattice
+        n3 = lat.n**3
+        self.view = wp.empty(n3, dtype=wp.vec3, device=self.t.device)
+        eye = wp.vec3(*self.t.scene.camera.origin)
+        dev.launch(toward_eye, n3, [self._m, lat, self.sigma_s, len(self.t.scene.media), self.L, eye, self.view],
+                   self.t.device, work=2.0 * lat.directions.shape[0])
+
+    def struct(self) -> ScatteredLight:
+        sl = ScatteredLight()
+        if self.n > 0 and self.view is not None:
+            sl.n, sl.lo, sl.hi, sl.values = self.lattice.n, self.lattice.lo, self.lattice.hi, self.view
+            sl.field, sl.directions = self.L, self.lattice.directions
+        else:
+            sl.n, sl.lo, sl.hi = 0, wp.vec3(0.0), wp.vec3(0.0)
+            sl.values = sl.field = sl.directions = wp.zeros(1, dtype=wp.vec3, device=self.t.device)
+        return sl
+
+    def diagnostics(self) -> dict:
+        return {"ms_orders": self.orders, "ms_tail_ratio": [float(r) for r in self.ratio]} if self.n else {}
