@@ -63,7 +63,7 @@ def scene_times():
         scene = wv.load_scene(name)
         npix = scene.camera.width * scene.camera.height
         t_ref, spread_ref = median_time(lambda: wv.render(scene, technique="reference", device="cpu", spp=64), 1)
-        t_rm, spread_rm = median_time(lambda: wv.render(scene, technique="raymarch", device="cpu"), 3)
+        t_rm, spread_rm = median_time(lambda: wv.render(scene, technique="raymarch", multiple_scattering=0, device="cpu"), 3)
         rows.append({"scene": name, "size": [scene.camera.width, scene.camera.height],
                      "reference_64spp_s": t_ref, "reference_paths_per_s": npix * 64 / t_ref,
                      "raymarch_64steps_s": t_rm, "raymarch_spread_s": spread_rm})

@@ -60,13 +60,13 @@ def child(path: str, device: str, images: str) -> dict:
     """One storage, measured in this fresh process (see the module docstring)."""
     for medium in ({"file": NANOVDB_CLOUD}, {"density": np.ones((2, 2, 2), np.float32)}):  # load both kernel paths
         warm = wv.load_scene(scene(medium, 4, 3))
-        wv.render(warm, technique="raymarch", device=device)
+        wv.render(warm, technique="raymarch", multiple_scattering=0, device=device)
         wv.render(warm, technique="reference", device=device, spp=1)
     with PeakMemory(device) as mem:
         t0 = time.perf_counter()
         s = wv.load_scene(scene({"file": path}))
         load_s = time.perf_counter() - t0
-        march = wv.render(s, technique="raymarch", device=device, steps=64, shadow_steps=32)
+        march = wv.render(s, technique="raymarch", multiple_scattering=0, device=device, steps=64, shadow_steps=32)
         march_image, march_t = march.image, march.timings
         del march
         gc.collect()  # a technique and its stages form a cycle: free the first upload before the second

@@ -377,9 +377,13 @@ def front_section(rows: list[dict], png: Path) -> list[str]:
     for ax, family in zip(axes.flat, families):
         rs = [r for r in rows if r["params"]["family"] == family]
         for technique in dict.fromkeys(r["params"]["technique"] for r in rs):
-            t_rows = [r for r in rs if r["params"]["technique"] == technique]
-            ax.plot([r["median_ms"] for r in t_rows], [max(r["rel_rmse_corrected"], 1e-4) for r in t_rows], "o-", ms=4,
-                    label=technique, color=colour[technique])
+            for ms in (False, True):  # without and with the multiple-scattering lattice
+                t_rows = [r for r in rs if r["params"]["technique"] == technique and
+                          bool(r["params"].get("multiple_scattering", 0)) == ms]
+                if t_rows:
+                    ax.plot([r["median_ms"] for r in t_rows], [max(r["rel_rmse_corrected"], 1e-4) for r in t_rows],
+                            "s--" if ms else "o-", ms=4, label=technique + (" + multiple scattering" if ms else ""),
+                            color=colour[technique])
         ax.set(xscale="log", yscale="log", xlabel="ms per frame", ylabel="relative RMSE vs the physical answer",
                title=f"{family} ({rs[0]['scene']})")
         ax.legend(fontsize=7)

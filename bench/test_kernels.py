@@ -22,8 +22,8 @@ def test_reference_frame(benchmark, scene):
 @pytest.mark.parametrize("steps", [16, 64, 256])
 def test_raymarch_frame(benchmark, steps):
     s = wv.load_scene("fog-box")
-    wv.render(s, technique="raymarch", steps=steps)
-    benchmark.pedantic(lambda: wv.render(s, technique="raymarch", steps=steps), rounds=5, iterations=1)
+    wv.render(s, technique="raymarch", multiple_scattering=0, steps=steps)
+    benchmark.pedantic(lambda: wv.render(s, technique="raymarch", multiple_scattering=0, steps=steps), rounds=5, iterations=1)
 
 
 @pytest.mark.parametrize("particles,directions", [(512, 128), (1024, 128), (1024, 256)])
@@ -65,7 +65,7 @@ def test_light_shafts_passes(benchmark, stage, raster):
     800x600, 256^2 cube map): rasterised (raster = 1) against BVH ray casts (raster = 0)."""
     from warpvol.bench.sweeps import shafts_scene
 
-    r = wv.Renderer(shafts_scene(False), technique="light_shafts", raster=raster)
+    r = wv.Renderer(shafts_scene(False), technique="light_shafts", multiple_scattering=0, raster=raster)
     r.render()
 
     def once():
@@ -79,7 +79,7 @@ def test_light_shafts_march(benchmark, block):
     """The march at N = 64 with and without M x M interleaving (the issue's 0.7 M^2 target)."""
     from warpvol.bench.sweeps import shafts_scene
 
-    r = wv.Renderer(shafts_scene(False), technique="light_shafts", steps=64, block=block)
+    r = wv.Renderer(shafts_scene(False), technique="light_shafts", multiple_scattering=0, steps=64, block=block)
     r.render()
 
     def once():

@@ -27,13 +27,14 @@ long characteristics:
 For the camera, every node holds R(x) = sum_d p(w_d . wo) L_{>=1}(x, w_d) / sum_d p(w_d . wo),
 wo toward the camera's eye: a march adds sigma_s(x) R(x) to its in-scattering at each step
 (``scattered_light``), trilinearly, one lookup. Moving the camera re-runs only that last
-bake. Surfaces block the scattered light; where a characteristic ends on one, the radiance
-it starts with is what the surface reflects of the lights' direct light and of the sky (light
-reflected by a surface into the media, once), and a march's visible surface reflects the
-scattered light arriving at it (``scattered_on_surface``, inside the lattice). What is left
-out is light reflected more than once between surfaces and media (a room's interreflection).
-Without surfaces, everything converges to the all-orders answer as the nodes and directions
-rise (error ~ 1/n, 1/D).
+bake. Surfaces are part of the iteration: a characteristic that ends on one starts with what
+the surface reflects, of the lights' direct light and of the sky in order 0 and of the
+lattice's field L_{k-1} in order k (``reflect_at_ends``), so light goes from the media to a
+wall and back, and from wall to wall; a march's visible surface reflects the field too
+(``scattered_on_surface``). A surface outside the lattice (a floor beyond the fog) reflects
+the lights and the sky once, not the field. Everything converges to the all-orders answer as
+the nodes and directions rise (error ~ 1/n, 1/D), up to the light leaking through surfaces
+thinner than a cell, whose two sides share nodes.
 
 The setting ``multiple_scattering`` is n (0: single scattering, the papers' own models);
 ``ms_directions`` is D.
@@ -76,8 +77,8 @@ BIASES = (Bias("multiple_scattering", factor=2, order=1, when="multiple"),
           Bias("ms_directions", factor=2, order=1, when="multiple"))
 
 #: What a technique leaves out with the term on (and the one it does not have without it).
-LEFT_OUT_WITH = ("light reflected more than once between surfaces and media (multiple scattering itself is "
-                 "approximated on a lattice: multiple_scattering, ms_directions)")
+LEFT_OUT_WITH = ("approximated, not left out: multiple scattering and the surfaces' indirect light, on a lattice "
+                 "(multiple_scattering, ms_directions)")
 LEFT_OUT_WITHOUT = "multiple scattering"
 
 MAX_ORDERS = 64  # source iterations before the geometric tail, at most
@@ -127,24 +128,39 @@ def scattered_light(sl: ScatteredLight, sigma_s: wp.vec3, x: wp.vec3) -> wp.vec3
 
 
 @wp.func
-def scattered_on_surface(sl: ScatteredLight, mat: Material, p: wp.vec3, n: wp.vec3, wo: wp.vec3) -> wp.vec3:
-    """What a surface at p (normal n facing wo) reflects toward wo of the light the media have
-    scattered: sum_d f cos L_{>=1}(p, w_d) 4 pi / D over the directions arriving from above
-    it; zero without the term or outside the lattice."""
+def inside_margin(lo: wp.vec3, hi: wp.vec3, margin: float, p: wp.vec3) -> bool:
+    return (p[0] >= lo[0] - margin and p[1] >= lo[1] - margin and p[2] >= lo[2] - margin and
+            p[0] <= hi[0] + margin and p[1] <= hi[1] + margin and p[2] <= hi[2] + margin)
+
+
+@wp.func
+def reflected_field(field: wp.array(dtype=wp.vec3), directions: wp.array(dtype=wp.vec3), n_nodes: int, lo: wp.vec3,
+                    hi: wp.vec3, mat: Material, p: wp.vec3, n: wp.vec3, wo: wp.vec3) -> wp.vec3:
+    """sum_d f(wo, -w_d) cos L(p, w_d) 4 pi / D over the directions arriving from above the
+    surface (normal n facing wo): what it reflects toward wo of a lattice's radiance field."""
     out = wp.vec3(0.0)
-    if sl.n == 0:
-        return out
-    if p[0] < sl.lo[0] or p[1] < sl.lo[1] or p[2] < sl.lo[2] or p[0] > sl.hi[0] or p[1] > sl.hi[1] or p[2] > sl.hi[2]:
-        return out
-    D = sl.directions.shape[0]
+    D = directions.shape[0]
     dw = 4.0 * PI / float(D)
     for d in range(D):
-        wi = -sl.directions[d]
+        wi = -directions[d]
         c = wp.dot(n, wi)
         if c > 0.0:
-            L = lattice_trilinear_vec3(sl.field, d, D, sl.n, sl.lo, sl.hi, p)
+            L = lattice_trilinear_vec3(field, d, D, n_nodes, lo, hi, p)
             out += reflected(mat, n, wo, wi, c, L * dw, wp.vec3(1.0))
     return out
+
+
+@wp.func
+def scattered_on_surface(sl: ScatteredLight, mat: Material, p: wp.vec3, n: wp.vec3, wo: wp.vec3) -> wp.vec3:
+    """What a surface at p (normal n facing wo) reflects toward wo of the light the media have
+    scattered and the surfaces have reflected (``reflected_field`` of L_{>=1}); zero without
+    the term or farther than a cell outside the lattice."""
+    if sl.n == 0:
+        return wp.vec3(0.0)
+    margin = wp.max(sl.hi - sl.lo) / float(sl.n - 1)
+    if not inside_margin(sl.lo, sl.hi, margin, p):
+        return wp.vec3(0.0)
+    return reflected_field(sl.field, sl.directions, sl.n, sl.lo, sl.hi, mat, p, n, wo)
 
 
 @wp.kernel
@@ -176,48 +192,84 @@ def phase_matrix(offset: int, m: Media, directions: wp.array(dtype=wp.vec3), out
         out[row * D + e] = phase_eval(m.phase[i], m.phase_table, wp.dot(directions[d], directions[e])) / total
 
 
+@wp.struct
+class Ends:
+    """Where each characteristic (direction d, node q; q fastest) ends: its length, the point and
+    the normal (facing the node) of the surface there, the surface's face (-1: none, the
+    lattice's boundary; -2: a surface outside the lattice, whose light is taken once, not
+    iterated) and the radiance arriving from there before any scattering (``start``)."""
+
+    length: wp.array(dtype=float)
+    point: wp.array(dtype=wp.vec3)
+    normal: wp.array(dtype=wp.vec3)
+    face: wp.array(dtype=int)
+    start: wp.array(dtype=wp.vec3)
+
+
 @wp.kernel
 def characteristics(offset: int, m: Media, s: Surfaces, lights: wp.array(dtype=Emitter), lat: Lattice,
-                    sky: wp.vec3, shadow_steps: int, lengths: wp.array(dtype=float), ends: wp.array(dtype=wp.vec3)):
+                    sky: wp.vec3, shadow_steps: int, ends: Ends):
     """How far back along w_d node q sees, to the lattice's boundary or the first surface, and
     the radiance arriving from there before any scattering in the media: the sky, or what the
-    first surface on the way (inside the lattice or beyond it) reflects toward w_d of the
-    lights' direct light and of the sky (Lambertian, the sky's visibility taken along the normal)."""
+    surface reflects toward w_d of the lights' direct light (and, outside the lattice, where the
+    iteration cannot reach it, of the sky: Lambertian, its visibility taken along the normal)."""
     tid = wp.tid() + offset
-    D = lat.directions.shape[0]
-    q = tid / D
+    n3 = lat.n * lat.n * lat.n
+    q = tid % n3
     x = node_position(lat, q)
-    w = lat.directions[tid % D]
+    w = lat.directions[tid / n3]
     back = -w
     a, b = ray_box(x, back, lat.lo, lat.hi)
     t = wp.max(b, 0.0)
     hit, t_hit, nrm, face = surface_hit(s, x, back, INF)
-    end = sky
+    start = sky
+    ends.face[tid] = -1
     if hit:  # inside the lattice or beyond it (where no medium is)
         t = wp.min(t, t_hit)
         p = x + t_hit * back
         nf = wp.where(wp.dot(nrm, w) > 0.0, nrm, -nrm)
         rng = wp.uint32(0)  # unused: transmittance is marched
         mat = s.material[face]
-        end = surface_direct(m, s, lights, p, nf, w, mat, 0, rng, shadow_steps)
-        if wp.max(sky) > 0.0:  # the sky's, as a Lambertian surface reflects it, seen through the media along n
-            up = light_transmittance(m, s, p + RAY_EPS * nf, nf, INF, 0, rng, shadow_steps)
-            end += wp.cw_mul(wp.cw_mul(mat.diffuse, sky), up)
-    lengths[tid] = t
-    ends[tid] = end
+        start = surface_direct(m, s, lights, p, nf, w, mat, 0, rng, shadow_steps)
+        ends.point[tid] = p
+        ends.normal[tid] = nf
+        ends.face[tid] = face
+        if not inside_margin(lat.lo, lat.hi, lat.step, p):
+            ends.face[tid] = -2
+            if wp.max(sky) > 0.0:
+                up = light_transmittance(m, s, p + RAY_EPS * nf, nf, INF, 0, rng, shadow_steps)
+                start += wp.cw_mul(wp.cw_mul(mat.diffuse, sky), up)
+    ends.length[tid] = t
+    ends.start[tid] = start
+
+
+@wp.kernel
+def reflect_at_ends(offset: int, s: Surfaces, lat: Lattice, ends: Ends, L: wp.array(dtype=wp.vec3),
+                    out: wp.array(dtype=wp.vec3)):
+    """The radiance a characteristic starts with in the next order: what the surface at its end
+    reflects toward w_d of the field L (``reflected_field``); zero where it ends on no surface
+    or outside the lattice."""
+    tid = wp.tid() + offset
+    n3 = lat.n * lat.n * lat.n
+    face = ends.face[tid]
+    out[tid] = wp.vec3(0.0)
+    if face >= 0:
+        out[tid] = reflected_field(L, lat.directions, lat.n, lat.lo, lat.hi, s.material[face], ends.point[tid],
+                                   ends.normal[tid], lat.directions[tid / n3])
 
 
 @wp.kernel
 def light_source(offset: int, m: Media, s: Surfaces, lights: wp.array(dtype=Emitter), lat: Lattice,
                  sigma_s: wp.array(dtype=wp.vec3), phase_count: int, shadow_steps: int, q_out: wp.array(dtype=wp.vec3)):
-    """Q_1 of the lights at node q for every direction: sum_l sigma_s p(-w_l . w_d) E_l T_l."""
+    """Q_1 of the lights at node q for every direction (direction-major): sum_l sigma_s
+    p(-w_l . w_d) E_l T_l."""
     q = wp.tid() + offset
     D = lat.directions.shape[0]
     n3 = lat.n * lat.n * lat.n
     x = node_position(lat, q)
     rng = wp.uint32(0)  # unused: transmittance is marched
     for d in range(D):
-        q_out[q * D + d] = wp.vec3(0.0)
+        q_out[d * n3 + q] = wp.vec3(0.0)
     for l in range(lights.shape[0]):
         wi, dist, e = light_incident(lights[l], x)
         if lights[l].kind != DIRECTIONAL:
@@ -231,19 +283,22 @@ def light_source(offset: int, m: Media, s: Surfaces, lights: wp.array(dtype=Emit
                         se = wp.cw_mul(sig, et)
                         for d in range(D):
                             ph = phase_eval(m.phase[i], m.phase_table, -wp.dot(wi, lat.directions[d]))
-                            q_out[q * D + d] = q_out[q * D + d] + ph * se
+                            q_out[d * n3 + q] = q_out[d * n3 + q] + ph * se
 
 
 @wp.kernel
 def transport(offset: int, lat: Lattice, sigma_t: wp.array(dtype=wp.vec3), source: wp.array(dtype=wp.vec3),
-              lengths: wp.array(dtype=float), ends: wp.array(dtype=wp.vec3), with_source: int,
+              lengths: wp.array(dtype=float), starts: wp.array(dtype=wp.vec3), with_source: int,
               out: wp.array(dtype=wp.vec3)):
-    """L(x, w_d) = int T Q ds back along w_d (one cell a step, exact per step); without a source
-    (``with_source`` = 0), the radiance at the characteristic's end (``ends``) attenuated."""
+    """L(x, w_d) = int T Q ds back along w_d (one cell a step, exact per step; Q direction-major,
+    ``with_source`` = 0: none) plus the radiance the characteristic starts with, attenuated
+    (``starts``); written node-major. Threads run node-fastest, so neighbouring threads march
+    side by side through the same cells."""
     tid = wp.tid() + offset
     D = lat.directions.shape[0]
-    q = tid / D
-    d = tid % D
+    n3 = lat.n * lat.n * lat.n
+    q = tid % n3
+    d = tid / n3
     x = node_position(lat, q)
     back = -lat.directions[d]
     t_end = lengths[tid]
@@ -256,23 +311,22 @@ def transport(offset: int, lat: Lattice, sigma_t: wp.array(dtype=wp.vec3), sourc
             xm = x + ((float(k) + 0.5) * dt) * back
             sig = lattice_trilinear_vec3(sigma_t, 0, 1, lat.n, lat.lo, lat.hi, xm)
             if with_source != 0:
-                src = lattice_trilinear_vec3(source, d, D, lat.n, lat.lo, lat.hi, xm)
+                src = lattice_trilinear_vec3(source, d * n3, 1, lat.n, lat.lo, lat.hi, xm)
                 L += wp.cw_mul(wp.cw_mul(tr, src), step_integral_rgb(sig, dt))
             tr = wp.cw_mul(tr, transmittance_rgb(sig * dt))
-    if with_source == 0:
-        L = wp.cw_mul(tr, ends[tid])
-    out[tid] = L
+    out[q * D + d] = L + wp.cw_mul(tr, starts[tid])
 
 
 @wp.kernel
 def scatter(offset: int, lat: Lattice, sigma_s: wp.array(dtype=wp.vec3), P: wp.array(dtype=float), phase_count: int,
             L: wp.array(dtype=wp.vec3), add: int, q_out: wp.array(dtype=wp.vec3)):
-    """Q(x, w_d) = sum_i sigma_s,i(x) sum_d' P_i[d, d'] L(x, w_d') (``add``: onto q_out)."""
+    """Q(x, w_d) = sum_i sigma_s,i(x) sum_d' P_i[d, d'] L(x, w_d') (L node-major, Q
+    direction-major; ``add``: onto q_out)."""
     tid = wp.tid() + offset
     D = lat.directions.shape[0]
+    n3 = lat.n * lat.n * lat.n
     q = tid / D
     d = tid % D
-    n3 = lat.n * lat.n * lat.n
     acc = wp.vec3(0.0)
     for i in range(phase_count):
         sig = sigma_s[i * n3 + q]
@@ -283,8 +337,8 @@ def scatter(offset: int, lat: Lattice, sigma_s: wp.array(dtype=wp.vec3), P: wp.a
                 s += P[row + e] * L[q * D + e]
             acc += wp.cw_mul(sig, s)
     if add != 0:
-        acc += q_out[tid]
-    q_out[tid] = acc
+        acc += q_out[d * n3 + q]
+    q_out[d * n3 + q] = acc
 
 
 @wp.kernel
@@ -401,40 +455,50 @@ class MultipleScattering:
         dev.launch(bake_scattering, n3, [m, lat, sigma_t, self.sigma_s], device, work=8.0 * M)
         P = wp.empty(M * D * D, dtype=float, device=device)
         dev.launch(phase_matrix, M * D, [m, lat.directions, P], device, work=2.0 * D)
-        lengths = wp.empty(size, dtype=float, device=device)
-        ends = wp.empty(size, dtype=wp.vec3, device=device)
-        lights = self._lights()
+        lights, surfaces = self._lights(), self._surfaces()
         shadow_steps = max(2 * lat.n, 16)
-        dev.launch(characteristics, size, [m, self._surfaces(), lights, lat, wp.vec3(*scene.background), shadow_steps,
-                                           lengths, ends], device, work=4.0 + lights.shape[0])
+        ends = Ends()
+        ends.length = wp.empty(size, dtype=float, device=device)
+        ends.point = wp.zeros(size, dtype=wp.vec3, device=device)
+        ends.normal = wp.zeros(size, dtype=wp.vec3, device=device)
+        ends.face = wp.empty(size, dtype=int, device=device)
+        ends.start = wp.empty(size, dtype=wp.vec3, device=device)
+        dev.launch(characteristics, size, [m, surfaces, lights, lat, wp.vec3(*scene.background), shadow_steps, ends],
+                   device, work=4.0 + lights.shape[0])
+        reflects = bool(scene.surfaces) and bool(np.any(ends.face.numpy() >= 0))
         source = wp.empty(size, dtype=wp.vec3, device=device)
-        dev.launch(light_source, n3, [m, self._surfaces(), lights, lat, self.sigma_s, M, shadow_steps, source],
+        dev.launch(light_source, n3, [m, surfaces, lights, lat, self.sigma_s, M, shadow_steps, source],
                    device, work=max(1, lights.shape[0]) * (4.0 * lat.n + D))
         L = wp.empty(size, dtype=wp.vec3, device=device)
+        starts = wp.zeros(size, dtype=wp.vec3, device=device)  # what each characteristic starts with, this order
         march = 2.0 * lat.n
         if any(c > 0.0 for c in scene.background) or scene.surfaces:
-            # the sky's light and the surfaces' reflected direct light, scattered once, join order 1's source
-            dev.launch(transport, size, [lat, sigma_t, source, lengths, ends, 0, L], device, work=march)
+            # L_0: the sky and the surfaces' reflected direct light; scattered once, it joins Q_1
+            dev.launch(transport, size, [lat, sigma_t, source, ends.length, ends.start, 0, L], device, work=march)
             dev.launch(scatter, size, [lat, self.sigma_s, P, M, L, 1, source], device, work=M * D)
+            if reflects:
+                dev.launch(reflect_at_ends, size, [surfaces, lat, ends, L, starts], device, work=D)
         total = wp.zeros(size, dtype=wp.vec3, device=device)
         one = wp.vec3(1.0, 1.0, 1.0)
-        previous, ratio, last = None, np.zeros(3), None
+        previous, ratio, total_energy = None, np.zeros(3), np.zeros(3)
         for k in range(1, MAX_ORDERS + 1):
-            dev.launch(transport, size, [lat, sigma_t, source, lengths, ends, 1, L], device, work=march)
+            dev.launch(transport, size, [lat, sigma_t, source, ends.length, starts, 1, L], device, work=march)
             dev.launch(add_order, size, [L, one, total], device)
             energy = L.numpy().reshape(-1, 3).sum(axis=0, dtype=np.float64)
+            total_energy = total_energy + energy
             self.orders = k
             if previous is not None:
                 r = np.where(previous > 0.0, energy / np.maximum(previous, 1e-300), 0.0)
-                if np.all(energy <= 1.0e-6 * total_energy) or np.all(np.abs(r - ratio) <= SETTLED * np.maximum(r, 1e-12)):
-                    ratio = r
-                    break
+                done = np.all(energy <= 1.0e-6 * total_energy) or np.all(np.abs(r - ratio) <= SETTLED * np.maximum(r, 1e-12))
                 ratio = r
+                if done:
+                    break
             previous = energy
-            total_energy = total.numpy().reshape(-1, 3).sum(axis=0, dtype=np.float64)
             if not np.any(energy > 0.0):
                 break
             dev.launch(scatter, size, [lat, self.sigma_s, P, M, L, 0, source], device, work=M * D)
+            if reflects:
+                dev.launch(reflect_at_ends, size, [surfaces, lat, ends, L, starts], device, work=D)
         self.ratio = np.clip(ratio, 0.0, MAX_RATIO)
         if np.any(self.ratio > 0.0):  # the geometric tail of the orders not iterated
             tail = self.ratio / (1.0 - self.ratio)

@@ -113,7 +113,7 @@ def impostor_frame(params: dict, device: str, quick: bool) -> dict:
     paper = params.get("setup") == "paper"
     if paper:
         scene = dataclasses.replace(scene, background=(0.0, 0.0, 0.0))
-    r = wv.Renderer(scene, technique="depth_impostors", device=device)
+    r = wv.Renderer(scene, technique="depth_impostors", multiple_scattering=0, device=device)
     repeats = 2 if quick else 8
     row = _moving_frames(r, scene, repeats) if paper else time_frames(r, repeats, invalidate=("medium", "lights"))
     d = r.diagnostics()
@@ -162,7 +162,7 @@ def impostor_accuracy(params: dict, device: str, quick: bool) -> dict:
     reference's mean over the multiple-scattering one's."""
     n, b, w = (400, 20, 24) if quick else (2000, 50, 96)
     scene = impostor_scene(quick, n, b, w)
-    r = wv.Renderer(scene, technique="depth_impostors", device=device, **_impostor_settings(params))
+    r = wv.Renderer(scene, technique="depth_impostors", multiple_scattering=0, device=device, **_impostor_settings(params))
     row = time_frames(r, repeats=2 if quick else 5, invalidate=("medium", "lights"))
     spp = 16 if quick else 256
     ref = score(row, scene, device, spp)
@@ -212,7 +212,7 @@ def impostor_objects(params: dict, device: str, quick: bool) -> dict:
     n, w = (400, 24) if quick else (2000, 96)
     b = params["per_block"]
     scene = impostor_scene(quick, n, b, w, surface=True)
-    r = wv.Renderer(scene, technique="depth_impostors", device=device, object_depth=params["object_depth"],
+    r = wv.Renderer(scene, technique="depth_impostors", multiple_scattering=0, device=device, object_depth=params["object_depth"],
                     light_pass=0)
     row = time_frames(r, repeats=2 if quick else 5, invalidate=("medium", "lights"))
     ref = score(row, scene, device, 16 if quick else 256)

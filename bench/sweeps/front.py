@@ -21,6 +21,11 @@ FRONT_LADDERS = {"reference": ("spp", (4, 16, 64, 256)), "raymarch": ("steps", (
                  "particle_glow": ("steps", (32, 128)), "illumination_network": ("directions", (32, 128)),
                  "depth_impostors": ("slices", (4, 16)), "mitsuba": ("spp", (4, 16, 64, 256))}
 FRONT_SIZE = (64, 48)
+#: The marchers' multiple-scattering term (warpvol.scattering): every level at 0 (the paper's model)
+#: and at the default lattice, and the middle level at a finer one.
+MARCHERS = ("raymarch", "light_shafts", "rbf_propagation", "particle_glow", "depth_impostors")
+MS_DEFAULT = {"multiple_scattering": 8, "ms_directions": 16}
+MS_FINE = {"multiple_scattering": 16, "ms_directions": 32}
 
 
 def front_scene(family: str, quick: bool):
@@ -49,7 +54,14 @@ def front_grid(quick: bool) -> list[dict]:
                     wv.Renderer(scene, technique=technique, device="cpu")
                 except (wv.SettingsError, ValueError):
                     continue
-            out += [{"family": family, "technique": technique, knob: v} for v in (levels[:1] if quick else levels)]
+            levels = levels[:1] if quick else levels
+            if technique not in MARCHERS:
+                out += [{"family": family, "technique": technique, knob: v} for v in levels]
+                continue
+            out += [{"family": family, "technique": technique, knob: v, "multiple_scattering": 0} for v in levels]
+            out += [{"family": family, "technique": technique, knob: v, **MS_DEFAULT} for v in levels]
+            if not quick:
+                out.append({"family": family, "technique": technique, knob: levels[len(levels) // 2], **MS_FINE})
     return out
 
 
@@ -71,7 +83,7 @@ def front(params: dict, device: str, quick: bool) -> dict:
         ref = score(row, scene, device, 16 if quick else 2048, max_bounces=-1, pixel_area=1)
         row["leaves_out"] = []
     else:
-        settings = {knob: params[knob]}
+        settings = {k: v for k, v in params.items() if k not in ("family", "technique")}
         if technique == "illumination_network":  # converged in every timed frame, from zero each time
             settings.update(iterations=2000, warm=0)
         r = wv.Renderer(scene, technique=technique, device=device, **settings)

@@ -48,7 +48,7 @@ def table2_grid(quick: bool) -> list[dict]:
 def table2(params: dict, device: str, quick: bool) -> dict:
     """Precomputed (P): only the march runs; dynamic: medium and lights change every frame."""
     lights, dynamic = TABLE2_COLUMNS[params["column"]]
-    r = wv.Renderer(_rbf_scene(quick, lights), technique="rbf_propagation", device=device, grid=params["grid"])
+    r = wv.Renderer(_rbf_scene(quick, lights), technique="rbf_propagation", multiple_scattering=0, device=device, grid=params["grid"])
     return time_frames(r, repeats=2 if quick else 3, invalidate=("medium", "lights", "camera") if dynamic else ("camera",))
 
 
@@ -63,7 +63,7 @@ def table3_grid(quick: bool) -> list[dict]:
 
 
 def table3(params: dict, device: str, quick: bool) -> dict:
-    r = wv.Renderer(_rbf_scene(quick, 1, params["rbfs"]), technique="rbf_propagation", device=device, grid=20)
+    r = wv.Renderer(_rbf_scene(quick, 1, params["rbfs"]), technique="rbf_propagation", multiple_scattering=0, device=device, grid=20)
     dynamic = params["column"] == "dynamic"
     return time_frames(r, repeats=2 if quick else 3, invalidate=("medium", "lights", "camera") if dynamic else ("camera",))
 
@@ -84,7 +84,7 @@ def rules(params: dict, device: str, quick: bool) -> dict:
     import numpy as np
 
     scene = wv.load_scene("rbf-cornell", ["camera.width=8", "camera.height=6"])
-    r = wv.Renderer(scene, technique="rbf_propagation", device=device, **params)
+    r = wv.Renderer(scene, technique="rbf_propagation", multiple_scattering=0, device=device, **params)
     row = time_frames(r, repeats=1 if quick else 3, invalidate=("lights",))
     a = r.arrays(for_view=True)
     err = np.abs(a["optical_depth"] - a["optical_depth_exact"])[..., 0]
@@ -108,14 +108,14 @@ def scaling(params: dict, device: str, quick: bool) -> dict:
     against cells x sweeps, the march against pixels x steps (rbf-cornell, 2 lights, 4:3)."""
     if params["stage"] == "propagate":
         scene = wv.load_scene("rbf-cornell", ["camera.width=8", "camera.height=6"])
-        r = wv.Renderer(scene, technique="rbf_propagation", device=device, grid=params["grid"], wavefront=0,
+        r = wv.Renderer(scene, technique="rbf_propagation", multiple_scattering=0, device=device, grid=params["grid"], wavefront=0,
                         iterations=params["iterations"])
         row = time_frames(r, repeats=2 if quick else 5, invalidate=("lights",))
         row["work"] = params["grid"] ** 3 * params["iterations"]
     else:
         w = params["width"]
         scene = wv.load_scene("rbf-cornell", [f"camera.width={w}", f"camera.height={w * 3 // 4}"])
-        r = wv.Renderer(scene, technique="rbf_propagation", device=device, grid=20, steps=params["steps"])
+        r = wv.Renderer(scene, technique="rbf_propagation", multiple_scattering=0, device=device, grid=20, steps=params["steps"])
         row = time_frames(r, repeats=2 if quick else 5, invalidate=("camera",))
         row["work"] = w * (w * 3 // 4) * params["steps"]
     row["stage_ms"] = row["stages"][params["stage"]]["median_ms"]
@@ -131,5 +131,5 @@ def rbf_accuracy_grid(quick: bool) -> list[dict]:
 def rbf_accuracy(params: dict, device: str, quick: bool) -> dict:
     w, h = (32, 24) if quick else (80, 60)
     scene = wv.load_scene("rbf-cornell", [f"camera.width={w}", f"camera.height={h}"])
-    r = wv.Renderer(scene, technique="rbf_propagation", device=device, **params)
+    r = wv.Renderer(scene, technique="rbf_propagation", multiple_scattering=0, device=device, **params)
     return score_against_reference(time_frames(r, repeats=2 if quick else 3), scene, device, 16 if quick else 1024)
