@@ -10,6 +10,7 @@ Accuracy sweeps: relative RMSE against ms per frame, with the error-vs-time fron
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -364,7 +365,26 @@ def write_model_error(rows: list[dict]) -> None:
 
 def front_section(rows: list[dict], png: Path) -> list[str]:
     """Per scene family, every technique's error against the physical answer over its frame
-    time, one line per technique on a log-log plot, and the table."""
+    time, one line per technique on a log-log plot, and the table; ``model_error.json`` from it."""
+    lines = _front_plot_and_table(rows, png)
+    if not png.stem.endswith("-quick"):  # a quick sweep's tiny images do not speak for the families
+        write_model_error(rows)
+    floor = rows[0]["reference"]["rel_rmse_floor"]
+    lines += ["", "`technique=\"auto\"` reads the best error and its time per family and technique from "
+              "`warpvol/model_error.json`, written with this page.",
+              "", f"The physical answer: the reference with all orders of scattering, {rows[0]['reference']['spp']} spp "
+              f"at pixel centres (its own relative noise {floor:.4f} for the first family, removed in quadrature). "
+              "A frame runs every stage its technique has (nothing cached). Mitsuba's rows (a box filter over each "
+              "pixel) are scored against the reference over pixel areas, and its time is its render after a warm-up "
+              "one. Where surfaces sit inside the fog (fog and occluders) Mitsuba takes a ray leaving them to be in "
+              "vacuum, and with a point light inside albedo-1 fog its finite-spp mean falls short "
+              "(tests/test_mitsuba.py): there it is not the yardstick the reference is."]
+    return lines
+
+
+def _front_plot_and_table(rows: list[dict], png: Path) -> list[str]:
+    """Per scene family a log-log plot of error against frame time, one line per technique (and
+    one for it with the multiple-scattering term), and the table of every row."""
     families = list(dict.fromkeys(r["params"]["family"] for r in rows))
     plt = _plt()
     techniques = list(dict.fromkeys(r["params"]["technique"] for r in rows))
@@ -397,22 +417,62 @@ def front_section(rows: list[dict], png: Path) -> list[str]:
     fig.tight_layout()
     fig.savefig(png, dpi=110)
     plt.close(fig)
-    if not png.stem.endswith("-quick"):  # a quick sweep's tiny images do not speak for the families
-        write_model_error(rows)
-    floor = rows[0]["reference"]["rel_rmse_floor"]
-    lines += ["", "`technique=\"auto\"` reads the best error and its time per family and technique from "
-              "`warpvol/model_error.json`, written with this page.",
-              "", f"The physical answer: the reference with all orders of scattering, {rows[0]['reference']['spp']} spp "
-              f"at pixel centres (its own relative noise {floor:.4f} for the first family, removed in quadrature). "
-              "A frame runs every stage its technique has (nothing cached). Mitsuba's rows (a box filter over each "
-              "pixel) are scored against the reference over pixel areas, and its time is its render after a warm-up "
-              "one. Where surfaces sit inside the fog (fog and occluders) Mitsuba takes a ray leaving them to be in "
-              "vacuum, and with a point light inside albedo-1 fog its finite-spp mean falls short "
-              "(tests/test_mitsuba.py): there it is not the yardstick the reference is."]
     return lines
 
 
-SECTIONS = {"animated": animated_section, "convergence": convergence_section, "bound": bound_section, "accuracy": accuracy_section, "scaling": scaling_section, "rules": rules_section, "paper": paper_section, "overhead": overhead_section, "speed": speed_section,
+def multiple_section(rows: list[dict], png: Path) -> list[str]:
+    """The multiple-scattering page: per family each marcher without the term (its defaults and
+    four times its knob) and with it; the lattice's ladder and the reference's error over its
+    time; and the plot of every row's error over its time."""
+    marchers = [r for r in rows if set(r["params"]) - {"family", "technique", "multiple_scattering", "ms_directions"}]
+    lines = ["| family | technique | off (paper's model) | off, 4x the knob | on (defaults) | time on ÷ off | "
+             "mean ÷ reference, off / on |", "|---|---|---|---|---|---|---|"]
+    by = {}
+    for r in marchers:
+        p = r["params"]
+        if p["technique"] == "reference":
+            continue
+        key = (p["family"], p["technique"])
+        kind = "on" if p.get("multiple_scattering") else ("off" if key + ("off",) not in by else "off4")
+        by[key + (kind,)] = r
+    for family, technique in dict.fromkeys((k[0], k[1]) for k in by):
+        off, off4, on = (by.get((family, technique, k)) for k in ("off", "off4", "on"))
+        if not (off and off4 and on):
+            continue
+        lines.append(f"| {family} | {technique} | {off['rel_rmse_corrected']:.3f} ({off['median_ms']:.0f} ms) | "
+                     f"{off4['rel_rmse_corrected']:.3f} ({off4['median_ms']:.0f} ms) | "
+                     f"{on['rel_rmse_corrected']:.3f} ({on['median_ms']:.0f} ms) | "
+                     f"{on['median_ms'] / off['median_ms']:.2f} | {off['mean_ratio']:.3f} / {on['mean_ratio']:.3f} |")
+    for family in dict.fromkeys(r["params"]["family"] for r in rows):
+        ladder = [r for r in rows if r["params"]["family"] == family and r["params"]["technique"] == "raymarch"
+                  and set(r["params"]) == {"family", "technique", "multiple_scattering", "ms_directions"}]
+        refs = [r for r in rows if r["params"]["family"] == family and r["params"]["technique"] == "reference"]
+        if not ladder or not refs:
+            continue
+        best = min(refs, key=lambda r: r["rel_rmse_corrected"])  # its noise ~ spp^-1/2: time to E ~ (e / E)^2
+        lines += ["", f"**{family}**: raymarch's lattice doubled, against the reference's time to the same error "
+                  f"(from its {best['params']['spp']} spp row: {best['rel_rmse_corrected']:.4f} in "
+                  f"{best['median_ms']:.0f} ms, its error falling as spp^-1/2).", "",
+                  "| multiple_scattering, ms_directions | ms / frame | relative RMSE | observed order | orders, tail ratio "
+                  "| the reference's time to it | ratio |", "|---|---|---|---|---|---|---|"]
+        prev = None
+        for r in ladder:
+            e = r["rel_rmse_corrected"]
+            t_ref = best["median_ms"] * (best["rel_rmse_corrected"] / max(e, 1e-6)) ** 2
+            order = f"{math.log2(prev / e):.2f}" if prev and e > 0 else "–"
+            sc = r.get("scattering", {})
+            tail = ", ".join(f"{x:.3f}" for x in sc.get("ms_tail_ratio", [])[:1])
+            lines.append(f"| {r['params']['multiple_scattering']}, {r['params']['ms_directions']} | "
+                         f"{r['median_ms']:.0f} | {e:.4f} | {order} | {sc.get('ms_orders', '–')}, {tail} | "
+                         f"{t_ref:.0f} ms | {r['median_ms'] / t_ref:.3f} |")
+            prev = e
+        lines += ["", "| reference spp | ms / frame | relative RMSE |", "|---|---|---|"]
+        lines += [f"| {r['params']['spp']} | {r['median_ms']:.0f} | {r['rel_rmse_corrected']:.4f} |" for r in refs]
+    lines += ["", "Every row:", ""] + _front_plot_and_table(rows, png)
+    return lines
+
+
+SECTIONS = {"multiple": multiple_section, "animated": animated_section, "convergence": convergence_section, "bound": bound_section, "accuracy": accuracy_section, "scaling": scaling_section, "rules": rules_section, "paper": paper_section, "overhead": overhead_section, "speed": speed_section,
             "edges": edges_section, "speedup": speedup_section, "lightpass": lightpass_section, "table": table_section,
             "front": front_section}
 

@@ -91,7 +91,7 @@ def test_march_matches_a_numpy_replica_of_equation_1(device):
     scene = glow_scene(width=1, height=1, target=(0.1, 0.35, 0.0))
     c2 = 0.8
     settings = dict(steps=48, density_cdf=1, mu=-10.0, sigma=1.0, texture_res=1, c2=c2, direction_seed=5)
-    image = wv.Renderer(scene, "particle_glow", device=device, **settings).render().image.reshape(3)
+    image = wv.Renderer(scene, "particle_glow", multiple_scattering=0, device=device, **settings).render().image.reshape(3)
 
     o = np.array([0.0, 0.3, 4.0])
     d = np.array([0.1, 0.35, 0.0]) - o
@@ -123,13 +123,13 @@ def test_without_glow_it_is_the_single_scattering_march(device):
     """glow = 0, a zero weight (exponent 0) and a density of 0 everywhere all leave I_o
     alone, and with no occluders that is raymarch's march over the same midpoints."""
     scene = glow_scene()
-    base = wv.Renderer(scene, "particle_glow", device=device, glow=0).render().image
+    base = wv.Renderer(scene, "particle_glow", multiple_scattering=0, device=device, glow=0).render().image
     for settings in ({"exponent": 0.0}, {"mu": 50.0}):
-        np.testing.assert_array_equal(wv.Renderer(scene, "particle_glow", device=device, **settings).render().image,
+        np.testing.assert_array_equal(wv.Renderer(scene, "particle_glow", multiple_scattering=0, device=device, **settings).render().image,
                                       base)
-    ray = wv.Renderer(scene, "raymarch", device=device, steps=128).render().image
+    ray = wv.Renderer(scene, "raymarch", multiple_scattering=0, device=device, steps=128).render().image
     np.testing.assert_allclose(base, ray, rtol=2e-4, atol=1e-6)
-    glowing = wv.Renderer(scene, "particle_glow", device=device).render().image
+    glowing = wv.Renderer(scene, "particle_glow", multiple_scattering=0, device=device).render().image
     assert glowing.mean() > 1.05 * base.mean()  # the glow adds light
 
 
@@ -142,7 +142,7 @@ def test_the_grain_is_fixed_in_the_world(device):
         s = glow_scene(origin=(shift, 0.3, 4.0), target=(shift, 0.3, 0.0),
                        lights=[{"type": "point", "position": [0.2 + shift, 0.9, 0.1], "intensity": 6.0}])
         s["media"][0]["center"] = [shift, 0.5, 0.0]
-        return wv.Renderer(s, "particle_glow", device=device, cell=0.125, texture_res=8).render().image
+        return wv.Renderer(s, "particle_glow", multiple_scattering=0, device=device, cell=0.125, texture_res=8).render().image
     base = render(0.0)
     assert wv.relative_rmse(render(1.0), base) < 0.01
     assert wv.relative_rmse(render(0.5), base) > 0.02

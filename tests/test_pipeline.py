@@ -56,7 +56,8 @@ def test_moving_a_light_reruns_what_depends_on_lights_only(device):
     r.update(lights=[moved])
     frame = r.render()
     assert {n: s.status for n, s in frame.stages.items()} == {
-        "medium": "cached", "surfaces": "cached", "lights": "ran", "light_volume": "ran", "march": "ran"}
+        "medium": "cached", "surfaces": "cached", "lights": "ran", "light_volume": "ran", "multiple": "ran",
+        "multiple_view": "ran", "march": "ran"}
     # the cached stages hold what a fresh render of the changed scene computes
     fresh = wv.render(smoke() | {"lights": [moved]}, technique="raymarch", device=device, **SMALL)
     np.testing.assert_array_equal(frame.image, fresh.image)
@@ -149,18 +150,20 @@ def test_a_stage_declaring_unknown_inputs_is_an_error():
 
 def test_a_frame_says_what_its_technique_leaves_out(device):
     """The sky (a non-black background) is a light: raymarch gathers it unless sky_samples = 0,
-    light_shafts leaves it out and says so; single-scattering techniques name multiple
-    scattering; the reference names the orders beyond max_bounces, and nothing at -1."""
+    light_shafts leaves it out and says so; single-scattering models name multiple scattering,
+    and with the multiple-scattering lattice (the default) say it is approximated; the reference names the orders beyond max_bounces, and nothing at -1."""
     scene = {"name": "sky", "background": [0.2, 0.3, 0.5],
              "camera": {"origin": [0, 0, 4], "target": [0, 0, 0], "fov_y": 40.0, "width": 4, "height": 3},
              "lights": [{"type": "directional", "direction": [0, -1, 0], "irradiance": 1.0}],
              "media": [{"type": "homogeneous", "shape": "sphere", "radius": 1.0, "sigma_t": 0.5, "albedo": 0.9}]}
     sky = "the sky's light (the background) scattered in the media or reflected by surfaces"
-    assert wv.render(scene, "raymarch", device=device).leaves_out == ["multiple scattering"]
+    assert wv.render(scene, "raymarch", device=device, multiple_scattering=0).leaves_out == ["multiple scattering"]
+    approximated = wv.render(scene, "raymarch", device=device).leaves_out  # the lattice's term, by default
+    assert len(approximated) == 1 and approximated[0].startswith("approximated, not left out: multiple scattering")
     assert sky in wv.render(scene, "raymarch", device=device, sky_samples=0).leaves_out
     assert sky in wv.render(scene, "light_shafts", device=device).leaves_out
     assert wv.render(scene, "reference", device=device, spp=1).leaves_out == []
     assert wv.render(scene, "reference", device=device, spp=1, max_bounces=1).leaves_out == [
         "light scattered more than 1 time (max_bounces = 1)"]
     scene["background"] = [0.0, 0.0, 0.0]
-    assert wv.render(scene, "light_shafts", device=device).leaves_out == ["multiple scattering"]
+    assert wv.render(scene, "light_shafts", device=device, multiple_scattering=0).leaves_out == ["multiple scattering"]

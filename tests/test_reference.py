@@ -124,9 +124,9 @@ def test_raymarch_gathers_the_sky(device):
     scene = {"camera": cam, "background": [0.5, 0.5, 0.5],
              "media": [{"type": "homogeneous", "shape": "sphere", "radius": 1.0, "sigma_t": 1.0, "albedo": 1.0}]}
     expected = sky_over_ball(cam, 0.5, 1.0)
-    image = wv.render(scene, technique="raymarch", device=device, steps=256, sky_samples=1024).image
+    image = wv.render(scene, technique="raymarch", multiple_scattering=0, device=device, steps=256, sky_samples=1024).image
     np.testing.assert_allclose(image, expected, rtol=2e-3)
-    dark = wv.render(scene, technique="raymarch", device=device, steps=256, sky_samples=0).image
+    dark = wv.render(scene, technique="raymarch", multiple_scattering=0, device=device, steps=256, sky_samples=0).image
     assert dark.mean() < 0.9 * expected.mean()
 
 
@@ -136,8 +136,8 @@ def test_raymarch_matches_reference_single_scattering(device):
     standard errors plus the marcher's step error, estimated as |I_N - I_N/2| (first order)."""
     scene = wv.load_scene("rbf-cornell", ["camera.width=32", "camera.height=24"])
     ref, se = two_seed_render(scene, device, spp=128, max_bounces=1, pixel_area=0)
-    m = wv.render(scene, technique="raymarch", device=device, steps=256, shadow_steps=128).image
-    m_half = wv.render(scene, technique="raymarch", device=device, steps=128, shadow_steps=64).image
+    m = wv.render(scene, technique="raymarch", multiple_scattering=0, device=device, steps=256, shadow_steps=128).image
+    m_half = wv.render(scene, technique="raymarch", multiple_scattering=0, device=device, steps=128, shadow_steps=64).image
     step_err = abs(m.mean() - m_half.mean())
     se_mean = np.sqrt(np.sum(se**2)) / se.size
     assert abs(ref.mean() - m.mean()) < 5 * se_mean + 2 * step_err, (ref.mean(), m.mean(), se_mean, step_err)
@@ -152,7 +152,7 @@ def test_raymarch_converges_to_airlight(device):
              "media": [{"type": "homogeneous", "shape": "sphere", "radius": 50.0, "sigma_t": 0.3, "albedo": 1.0}]}
     o, d = pixel_rays(cam)
     exact = airlight_exact(o, d.reshape(-1, 3), 50.0, light, np.full(3, 10.0), 0.3, 1.0, n=8192).reshape(H, W, 3)
-    errs = [np.abs(wv.render(scene, technique="raymarch", device=device, steps=n).image - exact).mean() / exact.mean()
+    errs = [np.abs(wv.render(scene, technique="raymarch", multiple_scattering=0, device=device, steps=n).image - exact).mean() / exact.mean()
             for n in (256, 512, 1024, 2048)]
     assert all(b < 0.6 * a for a, b in zip(errs, errs[1:])), errs
     assert errs[-1] < 0.01

@@ -3,6 +3,7 @@ furnace, convergence with the lattice, agreement with the all-orders reference, 
 validation."""
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -25,7 +26,8 @@ def furnace(width=12, height=9):
 
 def haze(width=16, height=12):
     """sunlit-haze without its floor: a sphere of anisotropic haze under the sun and a sky."""
-    scene = wv.load_scene("sunlit-haze", [f"camera.width={width}", f"camera.height={height}"])
+    scene = wv.load_scene(str(Path(__file__).resolve().parents[1] / "scenes" / "sunlit-haze.toml"),
+                          [f"camera.width={width}", f"camera.height={height}"])
     return dataclasses.replace(scene, surfaces=[])
 
 

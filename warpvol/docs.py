@@ -47,7 +47,7 @@ def quality_row(name: str) -> tuple[str, str, str]:
     biases = []
     for b in q.biases:
         limit = f"= {b.exact}" if b.exact is not None else f"x {b.factor} (order {b.order:g})"
-        biases.append(f"`{b.setting}` {limit}" + (" with a sky" if b.when == "sky" else ""))
+        biases.append(f"`{b.setting}` {limit}" + {"sky": " with a sky", "multiple": " with the term on"}.get(b.when, ""))
     held = ", ".join(f"`{k}` = {v}" for k, v in getattr(cls, "QUALITY_HOLD", {}).items())
     seed = getattr(cls, "QUALITY_SEED", None)
     if seed:
@@ -78,8 +78,18 @@ def technique_block(name: str) -> str:
                       "## Settings", "", settings_table(name), "", "## target_error", "",
                       f"- ladder: {ladder}", f"- biases measured at the level found, then taken to their limit "
                       f"where they are the larger part: {biases}", f"- held: {held}",
-                      f"- leaves out (against the physical answer): "
-                      f"{', '.join(technique_class(name).LEAVES_OUT) or 'nothing'}"])
+                      f"- leaves out (against the physical answer): {leaves_out_text(name)}"])
+
+
+def leaves_out_text(name: str) -> str:
+    """What a technique's model leaves out, as its page says it."""
+    cls = technique_class(name)
+    out = list(cls.LEAVES_OUT)
+    if "multiple_scattering" in cls.SETTINGS:
+        out.append("multiple scattering where `multiple_scattering` = 0 (the paper's model); with the lattice "
+                   "(the default) it and the surfaces' indirect light are approximated, not left out "
+                   "([multiple-scattering.md](../multiple-scattering.md))")
+    return ", ".join(out) or "nothing"
 
 
 def _fill(text: str, name: str, body: str) -> str:

@@ -63,10 +63,10 @@ from .upload import MediaBuffers
 dev.kernel_module(__name__)
 
 SETTINGS = {
-    "multiple_scattering": Setting(8, 0, 128, "nodes per axis of the lattice light scattered more than once is "
+    "multiple_scattering": Setting(8, 0, 64, "nodes per axis of the lattice light scattered more than once is "
                                                "solved on (orders 2 and up); 0: single scattering only, the "
                                                "paper's model"),
-    "ms_directions": Setting(16, 6, 1024, "directions of the multiple-scattering lattice's radiance (a Fibonacci "
+    "ms_directions": Setting(16, 6, 256, "directions of the multiple-scattering lattice's radiance (a Fibonacci "
                                           "set); error ~ 1/directions"),
 }
 
@@ -383,7 +383,7 @@ def toward_eye(offset: int, m: Media, lat: Lattice, sigma_s: wp.array(dtype=wp.v
 
 def check_settings(technique: str, settings: dict) -> None:
     if settings["multiple_scattering"] == 1:
-        raise SettingsError(f"{technique}: setting multiple_scattering=1 has no interior (allowed: 0 or 2..128)")
+        raise SettingsError(f"{technique}: setting multiple_scattering=1 has no interior (allowed: 0 or 2..64)")
 
 
 def leaves_out(settings: dict) -> tuple[str, ...]:

@@ -2,7 +2,8 @@
 sweeps (error against the reference vs time) and the pipeline's own overhead. ``SWEEPS`` is the
 registry, by name, in the order ``python -m warpvol bench --list`` shows."""
 
-from . import depth_impostors, front, illumination_network, light_shafts, particle_glow, raymarch, rbf_propagation, reference
+from . import (depth_impostors, front, illumination_network, light_shafts, multiple, particle_glow, raymarch, rbf_propagation,
+               reference)
 from .common import PAPER_TABLES, Sweep, row_fps  # noqa: F401  (PAPER_TABLES: the papers' numbers, for scripts)
 from .illumination_network import network_scene  # noqa: F401  (bench/test_kernels.py)
 from .light_shafts import shafts_scene  # noqa: F401
@@ -38,6 +39,12 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
           "against the physical answer (the reference, all orders of scattering, sky included): relative RMSE "
           "against ms per frame, 64x48; Mitsuba 3's volpath (llvm_ad_rgb) beside them where it can export the scene "
           "(homogeneous media)", "reference", "front", front.front_grid, front.front),
+    Sweep("multiple-scattering", "the marchers' multiple-scattering lattice (warpvol.scattering) against the physical "
+          "answer (the reference, all orders) per scene family: each marcher without it (multiple_scattering = 0, the "
+          "paper's model, at its defaults and at four times its quality knob) and with it (the defaults); raymarch's "
+          "lattice doubled (n, D) = (4, 8) .. (24, 48) beside the reference's error over its time on a fog box and "
+          "smoke-grid, 64x48", "raymarch", "multiple", multiple.ms_grid, multiple.ms_measure,
+          note=multiple.MS_NOTE),
     Sweep("raymarch-accuracy", "raymarch: relative RMSE against the single-scattering reference vs ms per frame, "
           "sweeping steps (= shadow_steps) and the baked light-volume size (0 = marched shadow rays)",
           "raymarch", "accuracy", raymarch.raymarch_grid, raymarch.raymarch_accuracy),

@@ -44,7 +44,7 @@ def overhead(params: dict, device: str, quick: bool) -> dict:
     times, which adds what the CPU thread pool costs the Python thread between launches.
     On a 4x3-pixel smoke-grid."""
     scene = wv.load_scene("smoke-grid", ["camera.width=4", "camera.height=3"])
-    r = wv.Renderer(scene, technique="raymarch", multiple_scattering=0, device=device, steps=4, shadow_grid=2, shadow_steps=2)
+    r = wv.Renderer(scene, technique="raymarch", device=device, steps=4, shadow_grid=2, shadow_steps=2)
     repeats = 20 if quick else 2000
     if params["case"] == "all_cached":
         row = time_frames(r, repeats, invalidate=None)

@@ -56,6 +56,10 @@ one block of b particles, so a frame renders the block once (b) and then its ins
   one-particle instance the chord is cut exactly). ``object_depth = 0`` is the billboard
   the paper fixes: a block stands at its centre plane, wholly in front of or behind the
   surface. The background (or the surface) shows through.
+
+With ``multiple_scattering`` = n > 0 (the default) the light scattered more than once is
+added too: solved on an n^3 lattice of ``ms_directions`` directions (``warpvol.scattering``,
+stages ``multiple`` and ``multiple_view``) and read at each shaded texel and one-particle instance as albedo R(x); 0 is the paper's model.
 """
 
 from __future__ import annotations

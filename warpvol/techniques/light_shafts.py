@@ -62,8 +62,12 @@ neighbours whose surface lies within ``edge_tolerance`` of its own depth and sca
 by M^2 / (neighbours kept), which cuts that error 2.5-8 fold there (5 fold at M = 4) at M^2
 reads per pixel.
 
-Leaves out (``frame.leaves_out``): multiple scattering, and the sky's light (the
-background) scattered in the medium or reflected by surfaces.
+Leaves out (``frame.leaves_out``): the sky's light (the background) scattered once in the
+medium or reflected by surfaces, and, with ``multiple_scattering`` = 0, multiple scattering.
+
+With ``multiple_scattering`` = n > 0 (the default) the light scattered more than once is
+added too: solved on an n^3 lattice of ``ms_directions`` directions (``warpvol.scattering``,
+stages ``multiple`` and ``multiple_view``) and read at each of a pixel's interleaved samples as sigma_s R(x); 0 is the paper's model.
 """
 
 from __future__ import annotations

@@ -47,8 +47,12 @@ Stages: medium, surfaces, lights (uploads), textures (density and directions), t
 (G_0, and G_n for the specular term), shadow_maps (surfaces and lights; not built without
 surfaces), march.
 
-Leaves out (``frame.leaves_out``): multiple scattering, and the sky's light (the
-background) scattered in the medium or reflected by surfaces.
+Leaves out (``frame.leaves_out``): the sky's light (the background) scattered once in the
+medium or reflected by surfaces, and, with ``multiple_scattering`` = 0, multiple scattering.
+
+With ``multiple_scattering`` = n > 0 (the default) the light scattered more than once is
+added too: solved on an n^3 lattice of ``ms_directions`` directions (``warpvol.scattering``,
+stages ``multiple`` and ``multiple_view``) and read at every step as sigma_s R(x) in place of the glow I_s, which imitates it; 0 is the paper's model, the glow.
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ T S (1 - exp(-sigma_t dt)) / sigma_t, the exact integral over a step of constant
 coefficients (Hillaire 2015), so thin and thick steps both conserve energy. Light reaches
 a point through the media (homogeneous media exactly, heterogeneous ones marched with
 ``shadow_steps`` midpoint steps) and past surfaces (a shadow ray). Surfaces are lit
-directly; no light scatters more than once. The sky (the background radiance) is a light
+directly. The sky (the background radiance) is a light
 too: its single scattering is gathered at every step from ``sky_samples`` directions over
 the sphere (``upload.sky_lights``), sum_k sigma_s p_k T_k / sum_k sigma_s p_k times
 sigma_s L_sky, and on surfaces as pi f L_sky sum_k cos_k T_k / sum_k cos_k; both exact where
@@ -21,7 +21,12 @@ real-time fog: the march then costs one lookup per light per step instead of
 ``shadow_steps`` density samples, at the price of blurring shadow edges to a cell.
 Surfaces still occlude through a shadow ray.
 
-Stages: medium, surfaces, lights (uploads), light_volume, march.
+With ``multiple_scattering`` = n > 0 (the default) the light scattered more than once is
+added too: solved on an n^3 lattice of ``ms_directions`` directions (``warpvol.scattering``,
+stages ``multiple`` and ``multiple_view``) and read at every step as sigma_s R(x), one
+trilinear lookup, and on the visible surface; 0 is single scattering.
+
+Stages: medium, surfaces, lights (uploads), light_volume, multiple, multiple_view, march.
 """
 
 from __future__ import annotations

@@ -54,8 +54,13 @@ reads the EV and every light's optical depth there (``cell_blend``), so a light 
 eight neighbouring reads, its falloff and its phase function to a step, not a lookup of
 its own. The first medium's albedo and phase function serve the whole volume.
 
-Leaves out (``frame.leaves_out``): multiple scattering, and the sky's light (the
-background) scattered in the medium or reflected by surfaces.
+Leaves out (``frame.leaves_out``): the sky's light (the background) scattered once in the
+medium or reflected by surfaces, and, with ``multiple_scattering`` = 0, multiple scattering.
+
+With ``multiple_scattering`` = n > 0 (the default) the light scattered more than once is
+added too: solved on an n^3 lattice of ``ms_directions`` directions (``warpvol.scattering``,
+stages ``multiple`` and ``multiple_view``) and read at every step of the march as sigma_s R(x); 0 is the paper's
+model.
 """
 
 from __future__ import annotations
