@@ -104,7 +104,7 @@ def test_against_the_reference_single_scattering(device):
 ])
 def test_spot_and_directional_lights_cast_shadows_like_raymarch(light, device):
     scene = pillar_scene(light)
-    base = wv.render(scene, technique="raymarch", device=device, steps=128).image
+    base = wv.render(scene, technique="raymarch", device=device, multiple_scattering=0, steps=128).image
     img = shafts(scene, device, steps=128, block=1, jitter=0, shadow_map_res=1024).image
     assert np.isfinite(img).all()
     assert np.abs(img - base).mean() / base.mean() < 0.02
@@ -218,7 +218,8 @@ def test_depth_aware_block_sum_removes_the_halo(device):
     to float rounding (measured 2e-7)."""
     scene = pillar_scene(width=96, height=72)
     full = shafts(scene, device, steps=64, block=1, jitter=0).image
-    r = wv.Renderer(scene, technique="light_shafts", device=device, steps=64, block=4, jitter=0, edges=0)
+    r = wv.Renderer(scene, technique="light_shafts", device=device, multiple_scattering=0, steps=64, block=4, jitter=0,
+                    edges=0)
     plain = r.render().image
     depth = r.arrays(resolution=2)["depth"]
     aware = shafts(scene, device, steps=64, block=4, jitter=0, edges=1).image
@@ -232,7 +233,8 @@ def test_depth_aware_block_sum_removes_the_halo(device):
 def test_heterogeneous_grid_medium_matches_raymarch(device):
     scene = wv.load_scene("smoke-grid", ["camera.width=40", "camera.height=30"])
     # light_shafts leaves the sky's light out (frame.leaves_out): raymarch without it too
-    base = wv.render(scene, technique="raymarch", device=device, steps=128, shadow_steps=64, sky_samples=0).image
+    base = wv.render(scene, technique="raymarch", device=device, multiple_scattering=0, steps=128, shadow_steps=64,
+                     sky_samples=0).image
     img = shafts(scene, device, steps=128, block=1, jitter=0, shadow_steps=64, shadow_map_res=1024).image
     assert np.abs(img - base).mean() / base.mean() < 0.02
 
