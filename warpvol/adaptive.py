@@ -138,6 +138,8 @@ def render_to_target(scene, technique: str, device, progress: bool, target: floa
                 continue
             if b.when == "multiple" and not current.get("multiple_scattering", defaults.get("multiple_scattering")):
                 continue
+            if b.when == "rbf" and not any(m.type == "rbf" for m in scene.media):
+                continue
             hi = cls.SETTINGS[b.setting].hi
             limit = b.exact if b.exact is not None else min(value * b.factor, hi)
             if limit == value or (b.exact is None and value == 0):  # at its limit, or off (0: left out)

@@ -47,7 +47,8 @@ def quality_row(name: str) -> tuple[str, str, str]:
     biases = []
     for b in q.biases:
         limit = f"= {b.exact}" if b.exact is not None else f"x {b.factor} (order {b.order:g})"
-        biases.append(f"`{b.setting}` {limit}" + {"sky": " with a sky", "multiple": " with the term on"}.get(b.when, ""))
+        when = {"sky": " with a sky", "multiple": " with the term on", "rbf": " with an RBF medium"}
+        biases.append(f"`{b.setting}` {limit}" + when.get(b.when, ""))
     held = ", ".join(f"`{k}` = {v}" for k, v in getattr(cls, "QUALITY_HOLD", {}).items())
     seed = getattr(cls, "QUALITY_SEED", None)
     if seed:

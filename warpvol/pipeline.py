@@ -70,7 +70,7 @@ class Bias:
     against ``factor`` times the value, the difference scaled to the whole bias as an error
     of order ``order`` (|x(v) - x(f v)| / (1 - f^-order)). ``when``: the scene part that must
     be present for the setting to matter (``"sky"``: a non-black background; ``"multiple"``:
-    the multiple-scattering term on), or None."""
+    the multiple-scattering term on; ``"rbf"``: an RBF medium), or None."""
 
     setting: str
     exact: object = None

@@ -8,8 +8,8 @@ being 1) and ``sky_reflected`` for a surface (pi sum_k cos_k f_k T_k / sum_k cos
 cosine's integral over the hemisphere being pi). Each technique sums its own T_k.
 
 Transmittance to a light is either estimated without bias (``march_steps`` = 0: exact for
-homogeneous media, ratio tracking for heterogeneous ones) or marched deterministically
-with ``march_steps`` midpoint steps over the heterogeneous part (homogeneous media exact).
+media with a closed form, ratio tracking for grids) or marched deterministically with
+``march_steps`` midpoint steps through the grids (homogeneous, particle and RBF media exact).
 """
 
 import warp as wp
@@ -17,7 +17,7 @@ import warp as wp
 from .geometry.intersect import ray_box
 from .geometry.mesh import Surfaces, occluded, surface_hit
 from .geometry.shadowmap import ShadowedLights, shadow_visibility, texel_world_size
-from .media.volume import Media, homogeneous_optical_depth, sigma_t_at, transmittance_estimate
+from .media.volume import Media, exact_media, exact_optical_depth, grid_sigma_t_at, transmittance_estimate
 from .physics.brdf import Material, brdf_eval
 from .physics.constants import INF, PI, RAY_EPS, STREAM
 from .physics.lights import Emitter, light_incident
@@ -26,9 +26,11 @@ from .physics.transmittance import transmittance_rgb
 
 @wp.func
 def marched_optical_depth(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: float, steps: int) -> wp.vec3:
-    """Optical depth over [t0, t1]: homogeneous media exact, heterogeneous by the midpoint rule."""
-    tau = homogeneous_optical_depth(m, o, d, t0, t1)
-    if m.het_majorant[0] <= 0.0 and m.het_majorant[1] <= 0.0 and m.het_majorant[2] <= 0.0:
+    """Optical depth over [t0, t1]: every medium with a closed form exact (homogeneous shapes,
+    particles, RBFs: one walk along the ray, not a density sum per step), grids by the midpoint
+    rule in ``steps`` steps over the heterogeneous media's box."""
+    tau = exact_optical_depth(m, o, d, t0, t1)
+    if exact_media(m):
         return tau
     a, b = ray_box(o, d, m.het_min, m.het_max)
     a = wp.max(a, t0)
@@ -36,7 +38,7 @@ def marched_optical_depth(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: float
     if a < b:
         dt = (b - a) / float(steps)
         for k in range(steps):
-            tau += sigma_t_at(m, o + (a + (float(k) + 0.5) * dt) * d, True) * dt
+            tau += grid_sigma_t_at(m, o + (a + (float(k) + 0.5) * dt) * d) * dt
     return tau
 
 

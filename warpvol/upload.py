@@ -27,13 +27,13 @@ from .geometry.shadowmap import ShadowedLights, ShadowMap, shadow_map_depths, sh
 from .media.grid import Grid, GridBuffers
 from .media.particles import ParticleBuffers, Particles, ball_around, particle_majorant
 from .media.rbf import CUTOFF, GaussianBuffers, Gaussians, rbf_majorant
-from .media.volume import BOX, GRID, PARTICLES, RBF, SPHERE, Media, sample_extinction
+from .media.volume import BOX, GRID, PARTICLES, RBF, SPHERE, Media, sample_extinction, sample_rbf_density
 from .physics.brdf import Material
 from .physics.lights import KINDS, Emitter
 from .physics.phase import PhaseParams, phase_struct
 from .physics.sphere import fibonacci_directions
 from .physics.constants import INF
-from .pipeline import SettingsError, Stage, Technique
+from .pipeline import Bias, Setting, SettingsError, Stage, Technique
 from .scene import SceneError, load_scene
 from .scene.model import Camera, GridMedium, HomogeneousMedium, ParticleMedium, RBFMedium, Scene
 
@@ -261,20 +261,75 @@ def gaussian_buffers(m: RBFMedium, device) -> tuple[GaussianBuffers, float]:
             rbf_majorant(m.centers, m.radius if same else radii, amplitudes=amps))
 
 
+#: The marchers' setting for media whose lookup sums what is in reach (RBFs), and its bias.
+EXTINCTION_SETTINGS = {
+    "extinction_grid": Setting(-1, -1, 512, "cells along the longest side of the grid an RBF medium's extinction is "
+                                             "baked into, so a march reads 8 samples where it would sum every Gaussian "
+                                             "in reach; 0: the Gaussians summed at every lookup (exact); -1: chosen from "
+                                             "the medium (baked where more than 8 Gaussians reach a point on average, a "
+                                             "cell half the smallest Gaussian's radius)"),
+}
+EXTINCTION_BIAS = Bias("extinction_grid", exact=0, when="rbf")
+BAKE_OVERLAP = 8  # Gaussians in reach of a point above which a trilinear grid (8 samples) is cheaper
+BAKE_MAX = 256  # cells along the longest side the choice from the medium goes up to
+
+
+def gaussians_in_reach(m: RBFMedium) -> float:
+    """How many of an RBF medium's Gaussians reach a point of its bounds on average: the sum of
+    their cut-off balls' volumes over the bounds' volume (what a density lookup sums)."""
+    radii, _ = m.gaussians()
+    lo, hi = medium_bounds(m) or (np.zeros(3), np.zeros(3))
+    volume = float(np.prod(np.maximum(hi - lo, 1e-9)))
+    return float(np.sum(4.0 / 3.0 * np.pi * (float(CUTOFF) * radii.astype(np.float64)) ** 3)) / volume
+
+
+def extinction_cells(m, setting: int) -> int:
+    """Cells along the longest side of the grid a march reads medium ``m`` from (0: the medium
+    itself): ``setting`` for an RBF medium, or with -1 the choice from the medium
+    (``gaussians_in_reach`` over ``BAKE_OVERLAP``: a cell half its smallest radius, at most
+    ``BAKE_MAX``); 0 for every other kind."""
+    if not isinstance(m, RBFMedium) or not len(m.centers) or setting == 0:
+        return 0
+    if setting > 0:
+        return setting
+    if gaussians_in_reach(m) <= BAKE_OVERLAP:
+        return 0
+    lo, hi = medium_bounds(m)
+    return int(min(BAKE_MAX, math.ceil(float(np.max(hi - lo)) / (0.5 * float(m.gaussians()[0].min())))))
+
+
+def baked_rbf_grid(m: RBFMedium, gaussians: GaussianBuffers, cells: int, device) -> GridBuffers:
+    """An RBF medium's density factor sampled at the cell centres of a grid over its bounds,
+    ``cells`` along the longest side (at least 2 on each): a grid medium of the same extinction
+    up to trilinear interpolation (error ~ (cell / radius)^2)."""
+    lo, hi = medium_bounds(m)
+    extent = np.maximum(hi - lo, 1e-9)
+    dims = np.maximum(2, np.ceil(cells * extent / extent.max() - 1e-9)).astype(int)
+    out = wp.empty(int(np.prod(dims)), dtype=float, device=device)
+    dev.launch(sample_rbf_density, out.shape[0], [gaussians.struct, wp.vec3(*lo.astype(np.float32)),
+                                                   wp.vec3(*hi.astype(np.float32)), wp.vec3i(*dims), out], device)
+    return GridBuffers(out.numpy().reshape(dims[2], dims[1], dims[0]), None, None, tuple(int(d) for d in dims), lo, hi,
+                       device)
+
+
 class MediaBuffers:
     """Owns the device buffers behind a ``Media`` struct: each medium's own (``grids``,
     ``gaussians``, ``clouds``: the kinds' buffers, in the order of the scene's media)."""
 
-    def __init__(self, scene: Scene, device):
+    def __init__(self, scene: Scene, device, extinction_grid: int = 0):
         """Every medium of ``scene`` on ``device``: per medium its kind, box and bounding ball,
         extinction, albedo and phase (its table in one shared array), and its kind's buffers
         (a grid's dense or NanoVDB values and majorant grid; an RBF medium's Gaussians with their
-        hash grid and BVH; a particle cloud's spheres), with the ``Media`` struct kernels read."""
+        hash grid and BVH; a particle cloud's spheres), with the ``Media`` struct kernels read.
+        ``extinction_grid`` (``extinction_cells``): RBF media baked into grids for a march;
+        ``baked`` lists the cells along the longest side of each medium's (0: not baked)."""
         kinds, bmin, bmax, center, radius, sigma, albedo, phases, index, reach = ([] for _ in range(10))
         majorants, tables = [], []
         n_table = 0
         self.grids, self.gaussians, self.clouds = [], [], []
+        self.baked = []
         for m in scene.media:
+            self.baked.append(extinction_cells(m, extinction_grid))
             ph, values = phase_struct(m.phase, n_table)
             if len(values):
                 tables.append(values)
@@ -299,6 +354,12 @@ class MediaBuffers:
                 self.grids.append(grid_buffers(m, device))
                 sigma.append(m.sigma_t_scale)
                 majorants.append(self.grids[-1].bound * np.asarray(m.sigma_t_scale))  # = the largest sample
+            elif isinstance(m, RBFMedium) and self.baked[-1]:
+                kinds.append(int(GRID))
+                index[-1] = len(self.grids)
+                self.grids.append(baked_rbf_grid(m, gaussian_buffers(m, device)[0], self.baked[-1], device))
+                sigma.append(tuple(m.peak))
+                majorants.append(self.grids[-1].bound * np.asarray(m.peak))
             elif isinstance(m, RBFMedium):
                 kinds.append(int(RBF))
                 index[-1] = len(self.gaussians)
@@ -380,7 +441,8 @@ class SceneUploads:
         self._no_surfaces: SurfaceBuffers | None = None
 
     def stages(self) -> list[Stage]:
-        return [Stage("medium", self._upload_medium, reads=("medium",))] * self._medium + [
+        baking = ("extinction_grid",) if "extinction_grid" in self.t.settings else ()
+        return [Stage("medium", self._upload_medium, reads=("medium",), settings=baking)] * self._medium + [
             Stage("surfaces", self._upload_surfaces, reads=("surfaces",), needed=bool(self.t.scene.surfaces)),
             Stage("lights", self._upload_lights, reads=("lights",)),
         ]
@@ -395,7 +457,12 @@ class SceneUploads:
         return self._no_surfaces.struct
 
     def _upload_medium(self):
-        self.media = MediaBuffers(self.t.scene, self.t.device)
+        self.media = MediaBuffers(self.t.scene, self.t.device, self.t.settings.get("extinction_grid", 0))
+
+    def diagnostics(self) -> dict:
+        """``extinction_grid``: per medium, the cells along the longest side of the grid the march
+        read it from (0: the medium itself), as chosen from the scene or set."""
+        return {"extinction_grid": list(self.media.baked)} if self.media is not None else {}
 
     def _upload_surfaces(self):
         self._surfaces = SurfaceBuffers(self.t.scene, self.t.device)

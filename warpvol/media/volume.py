@@ -105,6 +105,16 @@ def sigma_t_at(m: Media, x: wp.vec3, hetero_only: bool) -> wp.vec3:
 
 
 @wp.func
+def grid_sigma_t_at(m: Media, x: wp.vec3) -> wp.vec3:
+    """sigma_t of the grid media alone at x: what a march samples where no closed form exists."""
+    s = wp.vec3(0.0)
+    for i in range(m.count):
+        if m.kind[i] == GRID:
+            s += medium_sigma_t(m, i, x)
+    return s
+
+
+@wp.func
 def in_scatter_at(m: Media, x: wp.vec3, cos_theta: float) -> wp.vec3:
     """sum_m sigma_s,m(x) p_m(cos_theta): what scatters from a unit beam into a unit solid angle."""
     s = wp.vec3(0.0)
@@ -261,6 +271,18 @@ def free_flight(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: float, c: int, 
                 best = t
                 who = i
     return best, who
+
+
+@wp.kernel
+def sample_rbf_density(offset: int, R: Gaussians, lo: wp.vec3, hi: wp.vec3, n: wp.vec3i, out: wp.array(dtype=float)):
+    """An RBF medium's density factor at the cell centres of an n[0] x n[1] x n[2] lattice over
+    [lo, hi], x fastest: its Gaussians summed once, for a march to read as a grid."""
+    tid = wp.tid() + offset
+    ix = tid % n[0]
+    iy = (tid / n[0]) % n[1]
+    iz = tid / (n[0] * n[1])
+    f = wp.vec3((float(ix) + 0.5) / float(n[0]), (float(iy) + 0.5) / float(n[1]), (float(iz) + 0.5) / float(n[2]))
+    out[tid] = rbf_density(R, lo + wp.cw_mul(hi - lo, f))
 
 
 @wp.kernel

@@ -107,7 +107,8 @@ from ..scattering import MultipleScattering, ScatteredLight, scattered_light
 from ..scattering import check_settings as check_ms_settings
 from ..scattering import leaves_out as ms_leaves_out
 from ..shading import light_arriving, marched_optical_depth, surface_through_maps
-from ..upload import SceneUploads, pinhole, scene_bounds, shadow_map_structs
+from ..upload import (EXTINCTION_BIAS, EXTINCTION_SETTINGS, SceneUploads, pinhole, scene_bounds,
+                      shadow_map_structs)
 
 dev.kernel_module(__name__)
 
@@ -130,6 +131,7 @@ SETTINGS = {
                      "time, results/light-shafts-edges); 0: the paper's plain separable sum"),
     "edge_tolerance": Setting(0.1, 0.0, 10.0, "edges = 1: relative depth difference beyond which a neighbour is left out"),
     **MS_SETTINGS,
+    **EXTINCTION_SETTINGS,
 }
 
 
@@ -374,7 +376,8 @@ class LightShafts(Technique):
     NAME = NAME
     SETTINGS = SETTINGS
     QUALITY = Quality(knob="steps", start=16, top=4096, order=1, tied={"shadow_steps": 0.5},
-                      biases=(Bias("block", exact=1), Bias("shadow_map_res", factor=4, order=1), *MS_BIASES))
+                      biases=(Bias("block", exact=1), Bias("shadow_map_res", factor=4, order=1), *MS_BIASES,
+                              EXTINCTION_BIAS))
     LEAVES_OUT = ()
 
     def __init__(self, scene, device, settings, progress=False):
@@ -400,7 +403,7 @@ class LightShafts(Technique):
         return [*ms_leaves_out(self.settings), *super().leaves_out()]
 
     def diagnostics(self) -> dict:
-        return self.multiple.diagnostics()
+        return {**self.multiple.diagnostics(), **self.uploads.diagnostics()}
 
     def effective_block(self) -> int:
         """M, limited to the image so a window always holds all M^2 residue classes."""

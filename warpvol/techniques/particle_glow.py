@@ -80,7 +80,7 @@ from ..scattering import MultipleScattering, ScatteredLight, scattered_light
 from ..scattering import check_settings as check_ms_settings
 from ..scattering import leaves_out as ms_leaves_out
 from ..shading import camera_segment, light_arriving, surface_through_maps
-from ..upload import SceneUploads, pinhole, shadowed_lights
+from ..upload import EXTINCTION_BIAS, EXTINCTION_SETTINGS, SceneUploads, pinhole, shadowed_lights
 
 dev.kernel_module(__name__)
 
@@ -112,6 +112,7 @@ SETTINGS = {
     "specular": Setting(0.0, 0.0, 1.0e3, "k_s of the specular term the paper dropped (appendix B, equation 8); 0: off"),
     "shininess": Setting(20.0, 1.0, 1.0e4, "Phong exponent n of the specular term"),
     **MS_SETTINGS,
+    **EXTINCTION_SETTINGS,
 }
 
 
@@ -273,7 +274,7 @@ class ParticleGlow(Technique):
     NAME = NAME
     SETTINGS = SETTINGS
     QUALITY = Quality(knob="steps", start=8, top=8192, order=2, tied={"shadow_steps": 0.25},
-                      biases=(Bias("shadow_map_res", factor=4, order=1), *MS_BIASES))
+                      biases=(Bias("shadow_map_res", factor=4, order=1), *MS_BIASES, EXTINCTION_BIAS))
     LEAVES_OUT = ()
 
     def __init__(self, scene, device, settings, progress=False):
@@ -350,8 +351,9 @@ class ParticleGlow(Technique):
 
     def diagnostics(self) -> dict:
         """``density``: the particle-density texture d (texels), as sampled by the march; with
-        multiple scattering, the orders iterated and the tail's ratio (``scattering``)."""
-        return {"density": self.density.numpy(), **self.multiple.diagnostics()}
+        multiple scattering, the orders iterated and the tail's ratio (``scattering``); the grids
+        the media were baked into (``extinction_grid``, ``SceneUploads.diagnostics``)."""
+        return {"density": self.density.numpy(), **self.multiple.diagnostics(), **self.uploads.diagnostics()}
 
     def output(self):
         return self.image

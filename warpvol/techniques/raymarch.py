@@ -51,7 +51,8 @@ from ..scattering import check_settings as check_ms_settings
 from ..scattering import leaves_out as ms_leaves_out
 from ..shading import (camera_segment, light_transmittance, marched_optical_depth, reflected, sky_reflected,
                        sky_scattered, surface_direct)
-from ..upload import SceneUploads, light_structs, lights_array, pinhole, sky_light_structs
+from ..upload import (EXTINCTION_BIAS, EXTINCTION_SETTINGS, SceneUploads, light_structs, lights_array, pinhole,
+                      sky_light_structs)
 
 dev.kernel_module(__name__)
 
@@ -64,6 +65,7 @@ SETTINGS = {
     "sky_samples": Setting(32, 0, 4096, "directions the sky's light (the background) is gathered from at every step "
                                         "and surface point; 0: leave it out"),
     **MS_SETTINGS,
+    **EXTINCTION_SETTINGS,
 }
 
 
@@ -215,7 +217,7 @@ class Raymarch(Technique):
     SETTINGS = SETTINGS
     QUALITY = Quality(knob="steps", start=8, top=1024, order=2, tied={"shadow_steps": 1},
                       biases=(Bias("sky_samples", factor=4, order=1, when="sky"), Bias("shadow_grid", exact=0),
-                              *MS_BIASES))
+                              *MS_BIASES, EXTINCTION_BIAS))
     LEAVES_OUT = ()
 
     def __init__(self, scene, device, settings, progress=False):
@@ -230,7 +232,7 @@ class Raymarch(Technique):
         return [*ms_leaves_out(self.settings), *super().leaves_out()]
 
     def diagnostics(self) -> dict:
-        return self.multiple.diagnostics()
+        return {**self.multiple.diagnostics(), **self.uploads.diagnostics()}
 
     def check_settings(self, settings):
         check_ms_settings(NAME, settings)
