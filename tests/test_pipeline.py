@@ -167,3 +167,18 @@ def test_a_frame_says_what_its_technique_leaves_out(device):
         "light scattered more than 1 time (max_bounces = 1)"]
     scene["background"] = [0.0, 0.0, 0.0]
     assert wv.render(scene, "light_shafts", device=device, multiple_scattering=0).leaves_out == ["multiple scattering"]
+
+
+def test_a_camera_table_changes_only_its_keys(device):
+    """``update(camera=dict(origin=...))`` moves the camera and keeps its size and field of view;
+    the image equals a fresh render of the moved camera."""
+    scene = smoke()
+    scene["camera"].update(fov_y=30.0)
+    r = wv.Renderer(scene, technique="raymarch", device=device, **SMALL)
+    r.render()
+    r.update(camera=dict(origin=[1.0, 0.2, 4.0]))
+    frame = r.render()
+    assert frame.image.shape == (18, 24, 3)
+    assert r.scene.camera.fov_y == 30.0 and r.scene.camera.origin == (1.0, 0.2, 4.0)
+    moved = {**scene, "camera": {**scene["camera"], "origin": [1.0, 0.2, 4.0]}}
+    np.testing.assert_array_equal(frame.image, wv.render(moved, technique="raymarch", device=device, **SMALL).image)

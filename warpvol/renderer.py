@@ -73,11 +73,14 @@ class Renderer:
         """Replace scene parts or settings and mark them changed.
 
         ``lights``, ``medium`` and ``surfaces`` take one item or a list (model objects or
-        tables as in a scene file), ``camera`` a Camera or table, ``background`` an RGB
-        triple, ``settings`` a dict of technique settings. Passing the scene's own part
-        again (after editing it in place) marks it changed.
+        tables as in a scene file), ``camera`` a Camera, or a table of the keys to change
+        (``camera=dict(origin=...)`` keeps the size, field of view and the rest),
+        ``background`` an RGB triple, ``settings`` a dict of technique settings. Passing the
+        scene's own part again (after editing it in place) marks it changed.
         """
         t = self._technique
+        if isinstance(camera, dict):
+            camera = {**dataclasses.asdict(t.scene.camera), **camera}
         changes, parts = {}, []
         for part, value, field in (("lights", lights, "lights"), ("medium", medium, "media"),
                                    ("surfaces", surfaces, "surfaces"), ("camera", camera, "camera")):
