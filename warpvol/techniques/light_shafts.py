@@ -120,7 +120,7 @@ SETTINGS = {
     "depth_bias": Setting(0.02, 0.0, 1.0e3, "shadow-map depth bias, scene units"),
     "jitter": Setting(1, 0, 1, "1: random sample offset per pixel (no banding); 0: step midpoints"),
     "scattering": Setting(1, 0, 1, "0: surfaces only (the paper's 'no scattering' row)"),
-    "shadow_steps": Setting(32, 1, 1 << 16, "steps toward a light through heterogeneous media"),
+    "shadow_steps": Setting(32, 1, 1 << 16, "steps toward a light through grid media (the others: closed form)"),
     "seed": Setting(0, 0, 2**31 - 1, "random seed of the jitter"),
     "spacing": Setting(1, 0, 1, "0: the paper's dl = s / N per ray; 1: dl = (media segment) / N, shared by neighbours"),
     "raster": Setting(1, 0, 1, "1: shadow maps and the visible surface by rasterising triangles; 0: by BVH ray casts"),

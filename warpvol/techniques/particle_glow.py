@@ -89,7 +89,7 @@ SETTINGS = {
     "steps": Setting(128, 1, 1 << 16, "march steps along each view ray's media segment"),
     "shadow_map_res": Setting(256, 4, 8192, "texels per side of each shadow map (cube maps: per face)"),
     "depth_bias": Setting(0.02, 0.0, 1.0e3, "shadow-map depth bias, scene units"),
-    "shadow_steps": Setting(32, 1, 1 << 16, "steps toward a light through heterogeneous media"),
+    "shadow_steps": Setting(32, 1, 1 << 16, "steps toward a light through grid media (the others: closed form)"),
     "glow": Setting(1, 0, 1, "0: the direct sample I_o alone (a single-scattering march through shadow maps); "
                              "the glow imitates multiple scattering, so it is added only where "
                              "multiple_scattering = 0 (the paper's model)"),

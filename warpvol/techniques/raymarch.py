@@ -5,8 +5,9 @@ surface (or where it leaves them) in ``steps`` equal steps, or steps of ``step_l
 Each step evaluates sigma_t and the in-scattered direct light S at its midpoint and adds
 T S (1 - exp(-sigma_t dt)) / sigma_t, the exact integral over a step of constant
 coefficients (Hillaire 2015), so thin and thick steps both conserve energy. Light reaches
-a point through the media (homogeneous media exactly, heterogeneous ones marched with
-``shadow_steps`` midpoint steps) and past surfaces (a shadow ray). Surfaces are lit
+a point through the media (in closed form where one exists: homogeneous shapes, particles
+and RBFs, one walk along the ray; grids marched with ``shadow_steps`` midpoint steps) and
+past surfaces (a shadow ray). Surfaces are lit
 directly. The sky (the background radiance) is a light
 too: its single scattering is gathered at every step from ``sky_samples`` directions over
 the sphere (``upload.sky_lights``), sum_k sigma_s p_k T_k / sum_k sigma_s p_k times
@@ -25,6 +26,11 @@ With ``multiple_scattering`` = n > 0 (the default) the light scattered more than
 added too: solved on an n^3 lattice of ``ms_directions`` directions (``warpvol.scattering``,
 stages ``multiple`` and ``multiple_view``) and read at every step as sigma_s R(x), one
 trilinear lookup, and on the visible surface; 0 is single scattering.
+
+An RBF medium whose Gaussians overlap (``extinction_grid``, shared with light_shafts and
+particle_glow: ``upload.extinction_cells``) is baked into a grid once per medium change, so a
+step reads 8 samples where it would sum every Gaussian in reach; its bias against the exact
+sum falls as (cell / radius)^2 and ``target_error`` measures it.
 
 Stages: medium, surfaces, lights (uploads), light_volume, multiple, multiple_view, march.
 """
@@ -60,7 +66,7 @@ NAME = "raymarch"
 SETTINGS = {
     "steps": Setting(64, 1, 1 << 20, "steps along each camera ray (used when step_length = 0)"),
     "step_length": Setting(0.0, 0.0, 1.0e6, "step length in scene units; 0 = use steps"),
-    "shadow_steps": Setting(32, 1, 1 << 20, "steps along each ray toward a light, heterogeneous media"),
+    "shadow_steps": Setting(32, 1, 1 << 20, "steps along each ray toward a light through grid media (the others: closed form)"),
     "shadow_grid": Setting(0, 0, 512, "nodes per axis of the baked light-transmittance volume; 0 = march to the lights"),
     "sky_samples": Setting(32, 0, 4096, "directions the sky's light (the background) is gathered from at every step "
                                         "and surface point; 0: leave it out"),
