@@ -298,11 +298,12 @@ def extinction_cells(m, setting: int) -> int:
     return int(min(BAKE_MAX, math.ceil(float(np.max(hi - lo)) / (0.5 * float(m.gaussians()[0].min())))))
 
 
-def baked_rbf_grid(m: RBFMedium, gaussians: GaussianBuffers, cells: int, device) -> GridBuffers:
-    """An RBF medium's density factor sampled at the cell centres of a grid over its bounds,
-    ``cells`` along the longest side (at least 2 on each): a grid medium of the same extinction
-    up to trilinear interpolation (error ~ (cell / radius)^2)."""
-    lo, hi = medium_bounds(m)
+def baked_rbf_grid(m: RBFMedium, lo: np.ndarray, hi: np.ndarray, cells: int, device) -> GridBuffers:
+    """An RBF medium's density factor sampled at the cell centres of a grid over its bounds
+    [lo, hi], ``cells`` along the longest side (at least 2 on each): a grid medium of the same
+    extinction up to trilinear interpolation (error ~ (cell / radius)^2). Its Gaussians are
+    uploaded for the sampling only; their majorant, which the grid's replaces, is not computed."""
+    gaussians = GaussianBuffers(m.centers, *m.gaussians(), m.radius, device)
     extent = np.maximum(hi - lo, 1e-9)
     dims = np.maximum(2, np.ceil(cells * extent / extent.max() - 1e-9)).astype(int)
     out = wp.empty(int(np.prod(dims)), dtype=float, device=device)
@@ -357,7 +358,7 @@ class MediaBuffers:
             elif isinstance(m, RBFMedium) and self.baked[-1]:
                 kinds.append(int(GRID))
                 index[-1] = len(self.grids)
-                self.grids.append(baked_rbf_grid(m, gaussian_buffers(m, device)[0], self.baked[-1], device))
+                self.grids.append(baked_rbf_grid(m, lo, hi, self.baked[-1], device))
                 sigma.append(tuple(m.peak))
                 majorants.append(self.grids[-1].bound * np.asarray(m.peak))
             elif isinstance(m, RBFMedium):

@@ -273,24 +273,26 @@ def free_flight(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: float, c: int, 
     return best, who
 
 
+@wp.func
+def cell_centre(tid: int, lo: wp.vec3, hi: wp.vec3, n: wp.vec3i) -> wp.vec3:
+    """The centre of cell ``tid`` (x fastest) of an n[0] x n[1] x n[2] lattice over [lo, hi]."""
+    ix = tid % n[0]
+    iy = (tid / n[0]) % n[1]
+    iz = tid / (n[0] * n[1])
+    f = wp.vec3((float(ix) + 0.5) / float(n[0]), (float(iy) + 0.5) / float(n[1]), (float(iz) + 0.5) / float(n[2]))
+    return lo + wp.cw_mul(hi - lo, f)
+
+
 @wp.kernel
 def sample_rbf_density(offset: int, R: Gaussians, lo: wp.vec3, hi: wp.vec3, n: wp.vec3i, out: wp.array(dtype=float)):
     """An RBF medium's density factor at the cell centres of an n[0] x n[1] x n[2] lattice over
     [lo, hi], x fastest: its Gaussians summed once, for a march to read as a grid."""
     tid = wp.tid() + offset
-    ix = tid % n[0]
-    iy = (tid / n[0]) % n[1]
-    iz = tid / (n[0] * n[1])
-    f = wp.vec3((float(ix) + 0.5) / float(n[0]), (float(iy) + 0.5) / float(n[1]), (float(iz) + 0.5) / float(n[2]))
-    out[tid] = rbf_density(R, lo + wp.cw_mul(hi - lo, f))
+    out[tid] = rbf_density(R, cell_centre(tid, lo, hi, n))
 
 
 @wp.kernel
 def sample_extinction(offset: int, m: Media, lo: wp.vec3, hi: wp.vec3, n: wp.vec3i, out: wp.array(dtype=wp.vec3)):
     """sigma_t at the cell centres of an n[0] x n[1] x n[2] lattice over [lo, hi], x fastest."""
     tid = wp.tid() + offset
-    ix = tid % n[0]
-    iy = (tid / n[0]) % n[1]
-    iz = tid / (n[0] * n[1])
-    f = wp.vec3((float(ix) + 0.5) / float(n[0]), (float(iy) + 0.5) / float(n[1]), (float(iz) + 0.5) / float(n[2]))
-    out[tid] = sigma_t_at(m, lo + wp.cw_mul(hi - lo, f), False)
+    out[tid] = sigma_t_at(m, cell_centre(tid, lo, hi, n), False)
