@@ -150,7 +150,8 @@ def test_a_stage_declaring_unknown_inputs_is_an_error():
 
 def test_a_frame_says_what_its_technique_leaves_out(device):
     """The sky (a non-black background) is a light: raymarch gathers it unless sky_samples = 0,
-    light_shafts leaves it out and says so; single-scattering models name multiple scattering,
+    light_shafts does not; without the multiple-scattering lattice (which then carries it) they
+    leave it out and say so; single-scattering models name multiple scattering,
     and with the multiple-scattering lattice (the default) say it is approximated; the reference names the orders beyond max_bounces, and nothing at -1."""
     scene = {"name": "sky", "background": [0.2, 0.3, 0.5],
              "camera": {"origin": [0, 0, 4], "target": [0, 0, 0], "fov_y": 40.0, "width": 4, "height": 3},
@@ -160,8 +161,10 @@ def test_a_frame_says_what_its_technique_leaves_out(device):
     assert wv.render(scene, "raymarch", device=device, multiple_scattering=0).leaves_out == ["multiple scattering"]
     approximated = wv.render(scene, "raymarch", device=device).leaves_out  # the lattice's term, by default
     assert len(approximated) == 1 and approximated[0].startswith("approximated, not left out: multiple scattering")
-    assert sky in wv.render(scene, "raymarch", device=device, sky_samples=0).leaves_out
-    assert sky in wv.render(scene, "light_shafts", device=device).leaves_out
+    assert sky in wv.render(scene, "raymarch", device=device, sky_samples=0, multiple_scattering=0).leaves_out
+    assert sky in wv.render(scene, "light_shafts", device=device, multiple_scattering=0).leaves_out
+    for technique, settings in (("raymarch", {"sky_samples": 0}), ("light_shafts", {})):  # the lattice carries it
+        assert sky not in wv.render(scene, technique, device=device, **settings).leaves_out
     assert wv.render(scene, "reference", device=device, spp=1).leaves_out == []
     assert wv.render(scene, "reference", device=device, spp=1, max_bounces=1).leaves_out == [
         "light scattered more than 1 time (max_bounces = 1)"]

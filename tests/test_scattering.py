@@ -79,6 +79,29 @@ def test_agrees_with_the_all_orders_reference(device):
     assert wv.relative_rmse(single, ref) > bound
 
 
+def test_walls_light_each_other(device):
+    """The Cornell box of fog-box with a clear, non-scattering medium: all the light besides the
+    direct is the walls' interreflection, which only the lattice carries (the wall-to-wall
+    light of order 0 included). Against the reference (all orders, pixel centres, two seeds
+    of 256 spp) the image's mean is right to within the lattice's first-order discretisation
+    (2 |mean(n) - mean(2n)|) plus the reference's noise, where single scattering is ~30% dark;
+    and the error falls as the lattice doubles."""
+    scene = wv.load_scene("fog-box", ["camera.width=16", "camera.height=12", "media.0.sigma_t=0.05",
+                                      "media.0.albedo=0"])
+    a = wv.render(scene, technique="reference", device=device, spp=256, seed=1, pixel_area=0).image
+    b = wv.render(scene, technique="reference", device=device, spp=256, seed=2, pixel_area=0).image
+    ref = 0.5 * (a + b)
+    noise = wv.relative_rmse(ref + np.abs(a - b) / 2.0, ref)
+    images = [wv.render(scene, technique="raymarch", device=device, multiple_scattering=n, ms_directions=d).image
+              for n, d in ((0, 16), (8, 16), (16, 32))]
+    means = [float(img.mean() / ref.mean()) for img in images]
+    bound = 2.0 * abs(means[1] - means[2]) + 3.0 * noise / np.sqrt(ref.size / 3)
+    assert abs(means[2] - 1.0) <= bound < 0.1
+    assert abs(means[0] - 1.0) > 0.2
+    errors = [wv.relative_rmse(img, ref) for img in images[1:]]
+    assert errors[1] <= 0.75 * errors[0]
+
+
 def test_a_camera_move_re_runs_only_the_view(device):
     r = wv.Renderer(haze(8, 6), technique="raymarch", device=device)
     r.render()

@@ -164,10 +164,15 @@ class Technique:
 
     def leaves_out(self) -> list[str]:
         """``LEAVES_OUT``, and the sky's light where the scene has a sky the technique does not
-        gather (``sky_samples`` = 0, or no such setting)."""
+        gather (``sky_samples`` = 0, or no such setting) and no multiple-scattering lattice
+        approximates (``multiple_scattering`` = 0)."""
         out = list(self.LEAVES_OUT)
         if has_sky(self.scene) and self.settings.get("sky_samples", 0) == 0 and self.GATHERS_SKY is not True:
-            out.append("the sky's light (the background) scattered in the media or reflected by surfaces")
+            if self.settings.get("multiple_scattering", 0) > 0:  # the lattice carries it over the media
+                if self.scene.surfaces:
+                    out.append("the sky's light reflected by surfaces beyond the media's bounds")
+            else:
+                out.append("the sky's light (the background) scattered in the media or reflected by surfaces")
         return out
 
     #: True: the technique gathers the sky's light whatever its settings (e.g. by following paths).

@@ -20,6 +20,10 @@ long characteristics:
   interpolated trilinearly and each step integrated exactly for constant coefficients;
 * scattering: Q_{k+1}(x, w_d) = sigma_s(x) sum_d' P[d, d'] L_k(x, w_d'), the phase function
   as a D x D matrix whose rows sum to 1 (energy kept exactly at albedo 1, the white furnace);
+* order 0 (L_0: the sky and the surfaces' reflected direct light carried to the node, not
+  scattered) joins the total where a march does not gather it: the surfaces' part always
+  (the fog lit by the walls, a wall lit by another), the sky's unless the technique gathers
+  the sky's single scattering itself (``sky_samples`` > 0);
 * orders are summed until the ratio rho of successive orders' energies settles (to 1%);
   the rest of the series is the geometric tail L_k rho / (1 - rho), as Hillaire (EGSR 2020)
   sums the orders of multiple scattering in an atmosphere.
@@ -77,8 +81,8 @@ BIASES = (Bias("multiple_scattering", factor=2, order=1, when="multiple"),
           Bias("ms_directions", factor=2, order=1, when="multiple"))
 
 #: What a technique leaves out with the term on (and the one it does not have without it).
-LEFT_OUT_WITH = ("approximated, not left out: multiple scattering and the surfaces' indirect light, on a lattice "
-                 "(multiple_scattering, ms_directions)")
+LEFT_OUT_WITH = ("approximated, not left out: multiple scattering and the surfaces' indirect light (and the sky's "
+                 "light where the technique does not gather it), on a lattice (multiple_scattering, ms_directions)")
 LEFT_OUT_WITHOUT = "multiple scattering"
 
 MAX_ORDERS = 64  # source iterations before the geometric tail, at most
@@ -241,6 +245,14 @@ def characteristics(offset: int, m: Media, s: Surfaces, lights: wp.array(dtype=E
                 start += wp.cw_mul(wp.cw_mul(mat.diffuse, sky), up)
     ends.length[tid] = t
     ends.start[tid] = start
+
+
+@wp.kernel
+def surface_starts(offset: int, ends: Ends):
+    """Keep of each characteristic's start only what a surface sends (the sky's set to 0)."""
+    tid = wp.tid() + offset
+    if ends.face[tid] == -1:
+        ends.start[tid] = wp.vec3(0.0)
 
 
 @wp.kernel
@@ -411,14 +423,20 @@ class MultipleScattering:
         self.sigma_s = None
 
     @property
+    def gathers_sky(self) -> bool:
+        """Whether the technique gathers the sky's single scattering itself (else the lattice adds it)."""
+        return self.t.GATHERS_SKY is True or self.t.settings.get("sky_samples", 0) > 0
+
+    @property
     def n(self) -> int:
         return self.t.settings["multiple_scattering"] if self.t.scene.media else 0
 
     def stages(self, after: tuple[str, ...]) -> list[Stage]:
         needed = self.n > 0
+        sky = ("sky_samples",) if "sky_samples" in self.t.settings else ()
         return [
             Stage("multiple", self._solve, reads=("medium", "lights", "surfaces", "background"),
-                  settings=("multiple_scattering", "ms_directions"), after=after, needed=needed),
+                  settings=("multiple_scattering", "ms_directions", *sky), after=after, needed=needed),
             Stage("multiple_view", self._view, reads=("camera",), settings=("multiple_scattering",),
                   after=("multiple",), needed=needed),
         ]
@@ -472,14 +490,23 @@ class MultipleScattering:
         L = wp.empty(size, dtype=wp.vec3, device=device)
         starts = wp.zeros(size, dtype=wp.vec3, device=device)  # what each characteristic starts with, this order
         march = 2.0 * lat.n
-        if any(c > 0.0 for c in scene.background) or scene.surfaces:
+        total = wp.zeros(size, dtype=wp.vec3, device=device)
+        one = wp.vec3(1.0, 1.0, 1.0)
+        sky = any(c > 0.0 for c in scene.background)
+        if sky or scene.surfaces:
             # L_0: the sky and the surfaces' reflected direct light; scattered once, it joins Q_1
             dev.launch(transport, size, [lat, sigma_t, source, ends.length, ends.start, 0, L], device, work=march)
             dev.launch(scatter, size, [lat, self.sigma_s, P, M, L, 1, source], device, work=M * D)
             if reflects:
                 dev.launch(reflect_at_ends, size, [surfaces, lat, ends, L, starts], device, work=D)
-        total = wp.zeros(size, dtype=wp.vec3, device=device)
-        one = wp.vec3(1.0, 1.0, 1.0)
+            # L_0 joins the total where the march does not gather it itself: always the surfaces'
+            # part (the fog lit by the walls, a wall by the others), the sky's unless the
+            # technique gathers the sky's single scattering (raymarch's sky_samples)
+            if sky and scene.surfaces and self.gathers_sky:
+                dev.launch(surface_starts, size, [ends], device)
+                dev.launch(transport, size, [lat, sigma_t, source, ends.length, ends.start, 0, L], device, work=march)
+            if scene.surfaces or not self.gathers_sky:
+                dev.launch(add_order, size, [L, one, total], device)
         previous, ratio, total_energy = None, np.zeros(3), np.zeros(3)
         for k in range(1, MAX_ORDERS + 1):
             dev.launch(transport, size, [lat, sigma_t, source, ends.length, starts, 1, L], device, work=march)

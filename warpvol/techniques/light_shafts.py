@@ -103,7 +103,7 @@ from ..physics.transmittance import transmittance_rgb
 from ..pipeline import Bias, Quality, Setting, Stage, Technique
 from ..scattering import BIASES as MS_BIASES
 from ..scattering import SETTINGS as MS_SETTINGS
-from ..scattering import MultipleScattering, ScatteredLight, scattered_light
+from ..scattering import MultipleScattering, ScatteredLight, scattered_light, scattered_on_surface
 from ..scattering import check_settings as check_ms_settings
 from ..scattering import leaves_out as ms_leaves_out
 from ..shading import light_arriving, marched_optical_depth, surface_through_maps
@@ -188,7 +188,7 @@ def view_segments(offset: int, cam: RasterView, m: Media, s: Surfaces, source: i
 @wp.kernel
 def shade_visible_surface(offset: int, cam: RasterView, m: Media, s: Surfaces, sl: ShadowedLights,
                           vis: VisibleSurface, shadow_steps: int, view_steps: int, background: wp.vec3,
-                          radiance: wp.array(dtype=wp.vec3)):
+                          ms: ScatteredLight, radiance: wp.array(dtype=wp.vec3)):
     """The paper's step 1: the radiance the visible surface reflects (direct light through the
     shadow maps and the media), then its part of equation 1, L0 exp(-tau s): attenuated along
     the view ray (heterogeneous media by ``view_steps`` midpoints, as the march). Pixels without
@@ -204,7 +204,9 @@ def shade_visible_surface(offset: int, cam: RasterView, m: Media, s: Surfaces, s
         a, b, c = triangle_at(vis.points, vis.indices, f)
         n = wp.normalize(wp.cross(b - a, c - a))
         n = wp.where(wp.dot(n, d) < 0.0, n, -n)
-        L = surface_through_maps(m, sl, o + t * d + RAY_EPS * n, n, -d, s.material[f], tau_v, shadow_steps)
+        p = o + t * d + RAY_EPS * n
+        L = surface_through_maps(m, sl, p, n, -d, s.material[f], tau_v, shadow_steps)
+        L += wp.cw_mul(transmittance_rgb(tau_v), scattered_on_surface(ms, s.material[f], p, n, -d))
     radiance[tid] = L
 
 
@@ -421,9 +423,10 @@ class LightShafts(Technique):
                   after=("surfaces", "lights"), needed=occluders and bool(scene.lights)),
             Stage("visible", self._visible, reads=("camera",), settings=("raster", "raster_tiles"),
                   after=("medium", "surfaces")),
-            Stage("surface", self._surface, reads=("camera", "background"), settings=("shadow_steps", "steps"),
-                  after=("medium", "surfaces", "lights", "shadow_maps", "visible"), needed=occluders),
             *self.multiple.stages(after=("medium", "surfaces", "lights")),
+            Stage("surface", self._surface, reads=("camera", "background"),
+                  settings=("shadow_steps", "steps", "multiple_scattering"),
+                  after=("medium", "surfaces", "lights", "shadow_maps", "visible", "multiple_view"), needed=occluders),
             Stage("march", self._march, reads=("camera", "background"),
                   settings=("steps", "block", "jitter", "scattering", "shadow_steps", "seed", "spacing",
                             "multiple_scattering"),
@@ -521,7 +524,8 @@ class LightShafts(Technique):
         vis.points, vis.indices = mesh.points, mesh.indices
         dev.launch(shade_visible_surface, npix, [camera_view(pinhole(cam)), u.media.struct, u.surfaces,
                                                  self._shadowed_lights(), vis, self.settings["shadow_steps"],
-                                                 self.settings["steps"], wp.vec3(*scene.background), self.radiance],
+                                                 self.settings["steps"], wp.vec3(*scene.background),
+                                                 self.multiple.struct(), self.radiance],
                    self.device)
 
     def _march(self):

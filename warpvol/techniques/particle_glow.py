@@ -76,7 +76,7 @@ from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Bias, Quality, Setting, Stage, Technique
 from ..scattering import BIASES as MS_BIASES
 from ..scattering import SETTINGS as MS_SETTINGS
-from ..scattering import MultipleScattering, ScatteredLight, scattered_light
+from ..scattering import MultipleScattering, ScatteredLight, scattered_light, scattered_on_surface
 from ..scattering import check_settings as check_ms_settings
 from ..scattering import leaves_out as ms_leaves_out
 from ..shading import camera_segment, light_arriving, surface_through_maps
@@ -241,8 +241,9 @@ def march_glow(offset: int, cam: RasterView, m: Media, s: Surfaces, sl: Shadowed
                 tr = wp.cw_mul(tr, transmittance_rgb(sig * dt))
     if hit:
         nf = wp.where(wp.dot(n, d) < 0.0, n, -n)
-        Ls = surface_through_maps(m, sl, o + t_surf * d, nf, -d, s.material[face], wp.vec3(0.0), gs.shadow_steps)
-        L += wp.cw_mul(tr, Ls)
+        p = o + t_surf * d
+        Ls = surface_through_maps(m, sl, p, nf, -d, s.material[face], wp.vec3(0.0), gs.shadow_steps)
+        L += wp.cw_mul(tr, Ls + scattered_on_surface(ms, s.material[face], p, nf, -d))
     else:
         L += wp.cw_mul(tr, background)
     image[tid] = L

@@ -85,7 +85,7 @@ from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Quality, Setting, Stage, Technique
 from ..scattering import BIASES as MS_BIASES
 from ..scattering import SETTINGS as MS_SETTINGS
-from ..scattering import MultipleScattering, ScatteredLight, scattered_light
+from ..scattering import MultipleScattering, ScatteredLight, scattered_light, scattered_on_surface
 from ..scattering import check_settings as check_ms_settings
 from ..scattering import leaves_out as ms_leaves_out
 from ..scene.model import RBFMedium
@@ -496,6 +496,7 @@ def march_volumes(offset: int, cam: RasterView, s: Surfaces, lights: wp.array(dt
             if cos_l > 0.0:
                 tl = transmittance_rgb(surface_optical_depth(opv, n_lights, l, v, p, wi, dist))
                 L += wp.cw_mul(tr, reflected(s.material[face], nf, -d, wi, cos_l, e, tl))
+        L += wp.cw_mul(tr, scattered_on_surface(ms, s.material[face], p, nf, -d))
     else:
         L += wp.cw_mul(tr, background)
     image[tid] = L
