@@ -40,6 +40,12 @@ the lights and the sky once, not the field. Everything converges to the all-orde
 the nodes and directions rise (error ~ 1/n, 1/D), up to the light leaking through surfaces
 thinner than a cell, whose two sides share nodes.
 
+Where even cells would span more than a mean free path of media far wider than the camera's
+and the lights' surroundings (fog that fills the world), the nodes are graded: node u at
+c + s sinh(alpha (u - uc)) per axis, fine around the camera and lights and growing
+geometrically to the media's bounds (``graded_spacing``); the characteristics then step one
+local cell at a time.
+
 The setting ``multiple_scattering`` is n (0: single scattering, the papers' own models);
 ``ms_directions`` is D.
 """
@@ -53,7 +59,7 @@ from . import device as dev
 from .geometry.intersect import ray_box
 from .geometry.mesh import Surfaces, surface_hit
 from .physics.brdf import Material
-from .media.grid import lattice_trilinear_vec3
+from .media.grid import lattice_at_vec3
 from .media.volume import Media, medium_sigma_t
 from .physics.constants import INF, PI, RAY_EPS
 from .physics.lights import DIRECTIONAL, Emitter, ball_mean_inverse_square, light_incident
@@ -91,12 +97,27 @@ MAX_RATIO = 0.995  # rho above this is taken as this in the tail (albedo 1 in an
 
 
 @wp.struct
+class Spacing:
+    """How the nodes spread over [lo, hi] per axis: evenly where alpha is 0, else node u at
+    c + s sinh(alpha (u - uc)), cells of about s alpha near c growing by e^alpha a node away
+    from it (``graded_spacing``)."""
+
+    c: wp.vec3
+    s: wp.vec3
+    alpha: wp.vec3
+    uc: wp.vec3
+
+
+@wp.struct
 class Lattice:
-    """n^3 nodes on the corners of [lo, hi] and D directions: the solver's unknowns."""
+    """n^3 nodes on the corners of [lo, hi] (spread by ``spacing``) and D directions: the
+    solver's unknowns."""
 
     n: int
     lo: wp.vec3
     hi: wp.vec3
+    spacing: Spacing
+    graded: int  # 0: evenly spaced on every axis
     step: float  # transport step length: one cell
     cell: float  # the half cell a point light's 1/d^2 is averaged over
     directions: wp.array(dtype=wp.vec3)  # unit, the direction the radiance travels
@@ -107,28 +128,84 @@ class ScatteredLight:
     """What a march reads: R(x), the multiply scattered radiance weighted by the phase function
     toward the camera (``scattered_light``); n = 0: none (single scattering)."""
 
-    n: int
-    lo: wp.vec3
-    hi: wp.vec3
+    lat: Lattice
     values: wp.array(dtype=wp.vec3)
     field: wp.array(dtype=wp.vec3)  # L_{>=1}(x, w_d), n^3 x D, for surfaces
-    directions: wp.array(dtype=wp.vec3)
+
+
+@wp.func
+def asinh_(z: float) -> float:
+    a = wp.abs(z)
+    return wp.sign(z) * wp.log(a + wp.sqrt(a * a + 1.0))
+
+
+@wp.func
+def axis_coord(lo: float, hi: float, n: int, c: float, s: float, alpha: float, uc: float, x: float) -> float:
+    if alpha == 0.0:
+        return (x - lo) / (hi - lo) * float(n - 1)
+    return uc + asinh_((x - c) / s) / alpha
+
+
+@wp.func
+def axis_position(lo: float, hi: float, n: int, c: float, s: float, alpha: float, uc: float, u: float) -> float:
+    if alpha == 0.0:
+        return lo + (hi - lo) * u / float(n - 1)
+    return c + s * wp.sinh(alpha * (u - uc))
+
+
+@wp.func
+def axis_width(lo: float, hi: float, n: int, s: float, alpha: float, uc: float, u: float) -> float:
+    """The cell width dx/du at lattice coordinate u."""
+    if alpha == 0.0:
+        return (hi - lo) / float(n - 1)
+    return s * alpha * wp.cosh(alpha * (u - uc))
+
+
+@wp.func
+def lattice_coords(lat: Lattice, x: wp.vec3) -> wp.vec3:
+    sp = lat.spacing
+    return wp.vec3(axis_coord(lat.lo[0], lat.hi[0], lat.n, sp.c[0], sp.s[0], sp.alpha[0], sp.uc[0], x[0]),
+                   axis_coord(lat.lo[1], lat.hi[1], lat.n, sp.c[1], sp.s[1], sp.alpha[1], sp.uc[1], x[1]),
+                   axis_coord(lat.lo[2], lat.hi[2], lat.n, sp.c[2], sp.s[2], sp.alpha[2], sp.uc[2], x[2]))
+
+
+@wp.func
+def cell_size(lat: Lattice, x: wp.vec3) -> wp.vec3:
+    """The lattice's cell widths around x, per axis."""
+    sp = lat.spacing
+    u = wp.vec3()
+    for a in range(3):
+        u[a] = axis_coord(lat.lo[a], lat.hi[a], lat.n, sp.c[a], sp.s[a], sp.alpha[a], sp.uc[a],
+                          wp.clamp(x[a], lat.lo[a], lat.hi[a]))
+    return wp.vec3(axis_width(lat.lo[0], lat.hi[0], lat.n, sp.s[0], sp.alpha[0], sp.uc[0], u[0]),
+                   axis_width(lat.lo[1], lat.hi[1], lat.n, sp.s[1], sp.alpha[1], sp.uc[1], u[1]),
+                   axis_width(lat.lo[2], lat.hi[2], lat.n, sp.s[2], sp.alpha[2], sp.uc[2], u[2]))
+
+
+@wp.func
+def lattice_sample(values: wp.array(dtype=wp.vec3), base: int, stride: int, lat: Lattice, x: wp.vec3) -> wp.vec3:
+    """Trilinear lookup at x in a lattice's values (node q at ``base + stride q``)."""
+    return lattice_at_vec3(values, base, stride, lat.n, lattice_coords(lat, x))
 
 
 @wp.func
 def node_position(lat: Lattice, q: int) -> wp.vec3:
     n = lat.n
-    ijk = wp.vec3(float(q % n), float((q / n) % n), float(q / (n * n)))
-    return lat.lo + wp.cw_mul(lat.hi - lat.lo, ijk / float(n - 1))
+    sp = lat.spacing
+    return wp.vec3(axis_position(lat.lo[0], lat.hi[0], n, sp.c[0], sp.s[0], sp.alpha[0], sp.uc[0], float(q % n)),
+                   axis_position(lat.lo[1], lat.hi[1], n, sp.c[1], sp.s[1], sp.alpha[1], sp.uc[1],
+                                 float((q / n) % n)),
+                   axis_position(lat.lo[2], lat.hi[2], n, sp.c[2], sp.s[2], sp.alpha[2], sp.uc[2],
+                                 float(q / (n * n))))
 
 
 @wp.func
 def scattered_light(sl: ScatteredLight, sigma_s: wp.vec3, x: wp.vec3) -> wp.vec3:
     """sigma_s(x) R(x): the in-scattered radiance of the light scattered once or more at x toward
     the camera, per unit length (added to a march's in-scattering); zero without the term."""
-    if sl.n == 0:
+    if sl.lat.n == 0:
         return wp.vec3(0.0)
-    return wp.cw_mul(sigma_s, lattice_trilinear_vec3(sl.values, 0, 1, sl.n, sl.lo, sl.hi, x))
+    return wp.cw_mul(sigma_s, lattice_sample(sl.values, 0, 1, sl.lat, x))
 
 
 @wp.func
@@ -138,18 +215,19 @@ def inside_margin(lo: wp.vec3, hi: wp.vec3, margin: float, p: wp.vec3) -> bool:
 
 
 @wp.func
-def reflected_field(field: wp.array(dtype=wp.vec3), directions: wp.array(dtype=wp.vec3), n_nodes: int, lo: wp.vec3,
-                    hi: wp.vec3, mat: Material, p: wp.vec3, n: wp.vec3, wo: wp.vec3) -> wp.vec3:
+def reflected_field(field: wp.array(dtype=wp.vec3), lat: Lattice, mat: Material, p: wp.vec3, n: wp.vec3,
+                    wo: wp.vec3) -> wp.vec3:
     """sum_d f(wo, -w_d) cos L(p, w_d) 4 pi / D over the directions arriving from above the
     surface (normal n facing wo): what it reflects toward wo of a lattice's radiance field."""
     out = wp.vec3(0.0)
-    D = directions.shape[0]
+    D = lat.directions.shape[0]
     dw = 4.0 * PI / float(D)
+    g = lattice_coords(lat, p)
     for d in range(D):
-        wi = -directions[d]
+        wi = -lat.directions[d]
         c = wp.dot(n, wi)
         if c > 0.0:
-            L = lattice_trilinear_vec3(field, d, D, n_nodes, lo, hi, p)
+            L = lattice_at_vec3(field, d, D, lat.n, g)
             out += reflected(mat, n, wo, wi, c, L * dw, wp.vec3(1.0))
     return out
 
@@ -159,12 +237,11 @@ def scattered_on_surface(sl: ScatteredLight, mat: Material, p: wp.vec3, n: wp.ve
     """What a surface at p (normal n facing wo) reflects toward wo of the light the media have
     scattered and the surfaces have reflected (``reflected_field`` of L_{>=1}); zero without
     the term or farther than a cell outside the lattice."""
-    if sl.n == 0:
+    if sl.lat.n == 0:
         return wp.vec3(0.0)
-    margin = wp.max(sl.hi - sl.lo) / float(sl.n - 1)
-    if not inside_margin(sl.lo, sl.hi, margin, p):
+    if not inside_margin(sl.lat.lo, sl.lat.hi, wp.max(cell_size(sl.lat, p)), p):
         return wp.vec3(0.0)
-    return reflected_field(sl.field, sl.directions, sl.n, sl.lo, sl.hi, mat, p, n, wo)
+    return reflected_field(sl.field, sl.lat, mat, p, n, wo)
 
 
 @wp.kernel
@@ -238,7 +315,7 @@ def characteristics(offset: int, m: Media, s: Surfaces, lights: wp.array(dtype=E
         ends.point[tid] = p
         ends.normal[tid] = nf
         ends.face[tid] = face
-        if not inside_margin(lat.lo, lat.hi, lat.step, p):
+        if not inside_margin(lat.lo, lat.hi, wp.min(cell_size(lat, p)), p):
             ends.face[tid] = -2
             if wp.max(sky) > 0.0:
                 up = light_transmittance(m, s, p + RAY_EPS * nf, nf, INF, 0, rng, shadow_steps)
@@ -266,8 +343,7 @@ def reflect_at_ends(offset: int, s: Surfaces, lat: Lattice, ends: Ends, L: wp.ar
     face = ends.face[tid]
     out[tid] = wp.vec3(0.0)
     if face >= 0:
-        out[tid] = reflected_field(L, lat.directions, lat.n, lat.lo, lat.hi, s.material[face], ends.point[tid],
-                                   ends.normal[tid], lat.directions[tid / n3])
+        out[tid] = reflected_field(L, lat, s.material[face], ends.point[tid], ends.normal[tid], lat.directions[tid / n3])
 
 
 @wp.kernel
@@ -285,7 +361,8 @@ def light_source(offset: int, m: Media, s: Surfaces, lights: wp.array(dtype=Emit
     for l in range(lights.shape[0]):
         wi, dist, e = light_incident(lights[l], x)
         if lights[l].kind != DIRECTIONAL:
-            e = e * (dist * dist) * ball_mean_inverse_square(lat.cell, dist)  # finite at the light
+            cell = 0.5 * wp.length(cell_size(lat, x))  # the half cell 1/d^2 is averaged over: finite at the light
+            e = e * (dist * dist) * ball_mean_inverse_square(cell, dist)
         if wp.max(e) > 0.0:
             et = wp.cw_mul(e, light_transmittance(m, s, x, wi, dist, 0, rng, shadow_steps))
             if wp.max(et) > 0.0:
@@ -316,16 +393,29 @@ def transport(offset: int, lat: Lattice, sigma_t: wp.array(dtype=wp.vec3), sourc
     t_end = lengths[tid]
     L = wp.vec3(0.0)
     tr = wp.vec3(1.0)
-    if t_end > 0.0:
-        steps = wp.max(int(wp.ceil(t_end / lat.step)), 1)
+    t = float(0.0)
+    if lat.graded == 0 and t_end > 0.0:  # evenly spaced: equal steps of about a cell
+        steps = wp.max(int(wp.ceil(t_end / wp.min(cell_size(lat, x)))), 1)
         dt = t_end / float(steps)
+        t = t_end
         for k in range(steps):
             xm = x + ((float(k) + 0.5) * dt) * back
-            sig = lattice_trilinear_vec3(sigma_t, 0, 1, lat.n, lat.lo, lat.hi, xm)
+            sig = lattice_sample(sigma_t, 0, 1, lat, xm)
             if with_source != 0:
-                src = lattice_trilinear_vec3(source, d * n3, 1, lat.n, lat.lo, lat.hi, xm)
+                src = lattice_sample(source, d * n3, 1, lat, xm)
                 L += wp.cw_mul(wp.cw_mul(tr, src), step_integral_rgb(sig, dt))
             tr = wp.cw_mul(tr, transmittance_rgb(sig * dt))
+    while t < t_end:  # graded: steps of the local cell
+        dt = wp.min(wp.min(cell_size(lat, x + t * back)), t_end - t)
+        if t_end - t - dt < 1.0e-3 * dt:
+            dt = t_end - t
+        xm = x + (t + 0.5 * dt) * back
+        sig = lattice_sample(sigma_t, 0, 1, lat, xm)
+        if with_source != 0:
+            src = lattice_sample(source, d * n3, 1, lat, xm)
+            L += wp.cw_mul(wp.cw_mul(tr, src), step_integral_rgb(sig, dt))
+        tr = wp.cw_mul(tr, transmittance_rgb(sig * dt))
+        t += dt
     out[q * D + d] = L + wp.cw_mul(tr, starts[tid])
 
 
@@ -393,6 +483,53 @@ def toward_eye(offset: int, m: Media, lat: Lattice, sigma_s: wp.array(dtype=wp.v
         out[q] = s / float(D)
 
 
+#: The lattice grades its nodes on an axis where an even cell would span more than a mean free
+#: path and the media are wider than GRADE_ABOVE times the region that matters (the camera and
+#: the lights, FOCUS_FREE_PATHS mean free paths around): e.g. a light inside fog that fills the
+#: world, where an even lattice's cells are wider than everything the camera sees.
+GRADE_ABOVE = 4.0
+FOCUS_FREE_PATHS = 0.1
+
+
+def focus(scene) -> tuple:
+    """The box that matters most to the image, the camera's eye and the point and spot lights
+    FOCUS_FREE_PATHS mean free paths around, and that mean free path's extinction (the thinnest
+    homogeneous medium's); (None, None, 0) where the media are not all homogeneous (a grid's or a
+    cloud's own size is its set-up)."""
+    if not scene.media or any(mm.type != "homogeneous" for mm in scene.media):
+        return None, None, 0.0
+    sigma = min(float(np.min(mm.sigma_t)) for mm in scene.media)
+    if sigma <= 0.0:
+        return None, None, 0.0
+    points = [np.asarray(scene.camera.origin, np.float64)]
+    points += [np.asarray(li.position, np.float64) for li in scene.lights if getattr(li, "position", None) is not None]
+    points = np.array(points)
+    reach = FOCUS_FREE_PATHS / sigma
+    return points.min(axis=0) - reach, points.max(axis=0) + reach, sigma
+
+
+def graded_spacing(lo: np.ndarray, hi: np.ndarray, n: int, flo, fhi, sigma: float):
+    """Per axis (c, s, alpha, uc) of ``Spacing``: even (alpha 0) unless an even cell would span
+    more than a mean free path (1 / sigma) and the media's extent is over GRADE_ABOVE times the
+    focus box's (clipped to them); then node u at c + s sinh(alpha (u - uc)), centred on the
+    focus box with s its half width, so the focus gets cells of about s alpha and the far media
+    cells growing geometrically, and the nodes still span [lo, hi]."""
+    zero = np.zeros(3)
+    c, s, alpha, uc = zero.copy(), np.ones(3), zero.copy(), zero.copy()
+    if flo is None or n < 2:
+        return c, s, alpha, uc
+    flo, fhi = np.maximum(flo, lo), np.minimum(fhi, hi)
+    for a in range(3):
+        width = fhi[a] - flo[a]
+        if width <= 0.0 or hi[a] - lo[a] <= GRADE_ABOVE * width or (hi[a] - lo[a]) / (n - 1) * sigma <= 1.0:
+            continue
+        c[a], s[a] = 0.5 * (flo[a] + fhi[a]), 0.5 * width
+        a0, a1 = np.arcsinh((lo[a] - c[a]) / s[a]), np.arcsinh((hi[a] - c[a]) / s[a])
+        alpha[a] = (a1 - a0) / (n - 1)
+        uc[a] = -a0 / alpha[a]
+    return c, s, alpha, uc
+
+
 def check_settings(technique: str, settings: dict) -> None:
     if settings["multiple_scattering"] == 1:
         raise SettingsError(f"{technique}: setting multiple_scattering=1 has no interior (allowed: 0 or 2..64)")
@@ -454,10 +591,12 @@ class MultipleScattering:
         lat.n = n
         lo, hi = np.array(m.all_min, np.float64), np.array(m.all_max, np.float64)
         pad = 1.0e-4 * max(float(np.max(hi - lo)), 1.0e-6)
-        lat.lo, lat.hi = wp.vec3(*(lo - pad)), wp.vec3(*(hi + pad))
-        spacing = (hi - lo + 2 * pad) / (n - 1)
-        lat.step = float(np.min(spacing))
-        lat.cell = 0.5 * float(np.linalg.norm(spacing))
+        lo, hi = lo - pad, hi + pad
+        lat.lo, lat.hi = wp.vec3(*lo), wp.vec3(*hi)
+        c, s, alpha, uc = graded_spacing(lo, hi, n, *focus(self.t.scene))
+        lat.spacing = Spacing()
+        lat.spacing.c, lat.spacing.s, lat.spacing.alpha, lat.spacing.uc = (wp.vec3(*v) for v in (c, s, alpha, uc))
+        lat.graded = int(np.any(alpha > 0.0))
         lat.directions = wp.array(fibonacci_directions(D), dtype=wp.vec3, device=self.t.device)
         return lat
 
@@ -544,11 +683,11 @@ class MultipleScattering:
     def struct(self) -> ScatteredLight:
         sl = ScatteredLight()
         if self.n > 0 and self.view is not None:
-            sl.n, sl.lo, sl.hi, sl.values = self.lattice.n, self.lattice.lo, self.lattice.hi, self.view
-            sl.field, sl.directions = self.L, self.lattice.directions
+            sl.lat, sl.values, sl.field = self.lattice, self.view, self.L
         else:
-            sl.n, sl.lo, sl.hi = 0, wp.vec3(0.0), wp.vec3(0.0)
-            sl.values = sl.field = sl.directions = wp.zeros(1, dtype=wp.vec3, device=self.t.device)
+            sl.lat = Lattice()
+            sl.lat.n, sl.lat.graded, sl.lat.spacing = 0, 0, Spacing()
+            sl.values = sl.field = sl.lat.directions = wp.zeros(1, dtype=wp.vec3, device=self.t.device)
         return sl
 
     def diagnostics(self) -> dict:

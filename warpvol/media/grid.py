@@ -291,7 +291,13 @@ def lattice_trilinear_vec3(values: wp.array(dtype=wp.vec3), base: int, stride: i
     (node (i, j, k) at lo + (i, j, k) (hi - lo) / (n - 1), x fastest; node q's value at
     ``base + stride q``, so several lattices can be interleaved); points outside clamp to the
     boundary."""
-    g = wp.cw_div(x - lo, hi - lo) * float(n - 1)
+    return lattice_at_vec3(values, base, stride, n, wp.cw_div(x - lo, hi - lo) * float(n - 1))
+
+
+@wp.func
+def lattice_at_vec3(values: wp.array(dtype=wp.vec3), base: int, stride: int, n: int, g: wp.vec3) -> wp.vec3:
+    """``lattice_trilinear_vec3`` at lattice coordinates g (node (i, j, k) at g = (i, j, k);
+    clamped to the lattice), for lattices whose nodes are not evenly spaced."""
     fx = wp.clamp(g[0], 0.0, float(n - 1))
     fy = wp.clamp(g[1], 0.0, float(n - 1))
     fz = wp.clamp(g[2], 0.0, float(n - 1))

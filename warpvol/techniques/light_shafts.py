@@ -257,7 +257,7 @@ def march_shafts(offset: int, cam: RasterView, m: Media, sl: ShadowedLights, seg
                                                  c0 + w)  # a point light's 1/d^2 averaged over the cell
                         li = wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e)
                         acc += wp.cw_mul(transmittance_rgb(tau_v + tau), li) * w
-                if ms.n > 0:
+                if ms.lat.n > 0:
                     acc += wp.cw_mul(transmittance_rgb(tau_v), scattered_light(ms, scattering_at(m, x), x)) * w
         else:
             # optical depth from the camera, accumulated at every step; lights only at this pixel's
@@ -279,7 +279,7 @@ def march_shafts(offset: int, cam: RasterView, m: Media, sl: ShadowedLights, seg
                                                      c0, c0 + w)
                             li = wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e)
                             acc += wp.cw_mul(transmittance_rgb(tau_v + tau_l), li) * w
-                    if ms.n > 0:
+                    if ms.lat.n > 0:
                         acc += wp.cw_mul(transmittance_rgb(tau_v), scattered_light(ms, scattering_at(m, x), x)) * w
                 tau += sig * w
     partial_out[tid] = acc

@@ -220,7 +220,7 @@ def march_glow(offset: int, cam: RasterView, m: Media, s: Surfaces, sl: Shadowed
                     wi, e, tau = light_arriving(m, sl, l, x, wp.vec3(0.0), gs.shadow_steps)
                     if e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0:
                         src += wp.cw_mul(wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e), transmittance_rgb(tau))
-                if ms.n > 0:  # the light scattered more than once, solved (in place of the glow)
+                if ms.lat.n > 0:  # the light scattered more than once, solved (in place of the glow)
                     src += scattered_light(ms, scattering_at(m, x), x)
                 elif gs.glow != 0 and sl.lights.shape[0] > 0:  # I_s: the nearby particle's light
                     cell = cell_of(gs, x)

@@ -198,7 +198,7 @@ def march_single_scattering(offset: int, cam: RasterView, m: Media, s: Surfaces,
                         inscatter += wp.cw_mul(wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e), tl)
                 if sky.directions.shape[0] > 0:
                     inscatter += sky_in_scatter(m, s, sky, x, d, st, baked)
-                if ms.n > 0:
+                if ms.lat.n > 0:
                     inscatter += scattered_light(ms, scattering_at(m, x), x)
                 f = step_integral_rgb(sig, dt)
                 L += wp.cw_mul(wp.cw_mul(tr, inscatter), f)
