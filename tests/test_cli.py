@@ -70,3 +70,75 @@ def test_a_command_prints_its_own_line_and_nothing_else(tmp_path):
     verbose = run("render", "fog-box", "--technique", "raymarch", "--set", "camera.width=8", "--set", "camera.height=6",
                   "--out", str(out), "--verbose")
     assert verbose.returncode == 0 and "Warp" in verbose.stdout + verbose.stderr
+
+
+def test_typos_are_answered_with_the_name_meant(tmp_path):
+    """A misspelt setting, technique, scene key or table names what was meant, in one line."""
+    with pytest.raises(wv.SettingsError, match=r"unknown setting 'stepz'; did you mean steps\?"):
+        wv.render("fog-box", "raymarch", stepz=4)
+    with pytest.raises(wv.SettingsError, match=r"unknown technique 'raymarh'; did you mean raymarch\?"):
+        wv.render("fog-box", "raymarh")
+    with pytest.raises(wv.SceneError, match=r"sigma_t: missing \(there is a key 'sigma_tt': a misspelling of sigma_t\?\)"):
+        wv.load_scene({"camera": {"origin": [0, 0, 3], "target": [0, 0, 0], "width": 4, "height": 3},
+                       "media": [{"type": "homogeneous", "shape": "sphere", "radius": 1, "sigma_tt": 0.5}]})
+    with pytest.raises(wv.SceneError, match=r"camera: missing \(there is a key 'camra'"):
+        wv.load_scene({"camra": {}, "media": []})
+    with pytest.raises(wv.SceneError, match=r"albdo: unknown key; did you mean albedo\?"):
+        wv.load_scene("fog-box", ["media.0.albdo=0.5"])
+    r = run("render", "fog-box", "--technique", "raymarch", "--set", "stepz=4", "--out", str(tmp_path / "x.png"))
+    assert r.returncode == 2 and "stepz is not a setting of raymarch; did you mean steps?" in r.stderr
+    assert r.stderr.count("\n") == 1 and not (tmp_path / "x.png").exists()
+
+
+def test_the_api_takes_the_clis_overrides():
+    """``overrides`` spells scene keys as ``--set`` does, as a dict or KEY=VALUE strings, in
+    render and Renderer alike; a loaded Scene is refused with what to do instead."""
+    small = {"camera.width": 12, "camera.height": 9, "media.0.sigma_t": 1.2}
+    a = wv.render("fog-box", "raymarch", device="cpu", overrides=small, steps=8)
+    b = wv.Renderer("fog-box", "raymarch", device="cpu", overrides=[f"{k}={v}" for k, v in small.items()],
+                    steps=8).render()
+    c = wv.render(wv.load_scene("fog-box", [f"{k}={v}" for k, v in small.items()]), "raymarch", device="cpu", steps=8)
+    assert a.image.shape == (9, 12, 3)
+    np.testing.assert_array_equal(a.image, b.image)
+    np.testing.assert_array_equal(a.image, c.image)
+    with pytest.raises(wv.SceneError, match="allowed: for a loaded Scene, dataclasses.replace"):
+        wv.render(wv.load_scene("fog-box"), "raymarch", overrides={"camera.width": 8})
+
+
+def test_a_frame_shows_itself_in_a_notebook():
+    """``Frame._repr_png_``: a PNG of the image's size (what Jupyter shows), the same pixels
+    ``save_image`` writes."""
+    import zlib
+
+    frame = wv.render("fog-box", "raymarch", device="cpu", overrides={"camera.width": 10, "camera.height": 7}, steps=8)
+    png = frame._repr_png_()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n"
+    assert int.from_bytes(png[16:20], "big") == 10 and int.from_bytes(png[20:24], "big") == 7
+    idat = png.index(b"IDAT")
+    raw = zlib.decompress(png[idat + 4: idat + 4 + int.from_bytes(png[idat - 4: idat], "big")])
+    rows = np.frombuffer(raw, np.uint8).reshape(7, 1 + 10 * 3)[:, 1:].reshape(7, 10, 3)
+    from warpvol.image import tonemap
+
+    np.testing.assert_array_equal(rows, tonemap(frame.image))
+
+
+def test_a_built_in_scene_prints_as_toml_that_loads_back(tmp_path):
+    """``scenes NAME --toml`` writes a scene file that renders as the built-in does; a grid too
+    large for TOML is refused in one line; ``scenes`` prints whole descriptions; ``render``
+    without --out writes SCENE.TECHNIQUE.png."""
+    r = run("scenes", "rbf-cornell", "--toml")
+    assert r.returncode == 0, r.stderr
+    path = tmp_path / "mine.toml"
+    path.write_text(r.stdout)
+    size = ["camera.width=8", "camera.height=6"]
+    a = wv.render(wv.load_scene("rbf-cornell", size), "raymarch", device="cpu", multiple_scattering=0, steps=8)
+    b = wv.render(wv.load_scene(str(path), size), "raymarch", device="cpu", multiple_scattering=0, steps=8)
+    np.testing.assert_array_equal(a.image, b.image)
+    r = run("scenes", "smoke-grid", "--toml")
+    assert r.returncode == 2 and "too large for a TOML file" in r.stderr and r.stderr.count("\n") == 1
+    r = run("scenes")
+    assert "(the Sun et al. 2005 airlight set-up)" in r.stdout
+    r = subprocess.run([sys.executable, "-m", "warpvol", "render", "fog-box", "--technique", "raymarch", "--set",
+                        "camera.width=8", "--set", "camera.height=6"], capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "fog-box.raymarch.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

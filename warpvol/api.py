@@ -5,11 +5,16 @@ from __future__ import annotations
 
 from .adaptive import check_target, render_auto, render_to_target
 from .pipeline import Frame
+from .scene import load_scene
 from .renderer import Renderer, render_once, technique_class, technique_names  # noqa: F401  (the public API)
 
 
-def render(scene, technique: str = "reference", device: str | None = None, progress: bool = False, **settings) -> Frame:
+def render(scene, technique: str = "reference", device: str | None = None, progress: bool = False,
+           overrides: list[str] | dict | None = None, **settings) -> Frame:
     """Render ``scene`` (a Scene, a .toml path, a built-in name or a dict) with ``technique``.
+
+    ``overrides`` changes scene keys by their dotted path, the CLI's ``--set`` spelling:
+    ``{"camera.width": 320, "media.0.sigma_t": 2.0}`` or ``["camera.width=320"]``.
 
     Settings are the technique's (``warpvol.techniques.TECHNIQUES[name].SETTINGS``); an
     unknown name or an out-of-range value raises before anything runs. The image is
@@ -41,6 +46,8 @@ def render(scene, technique: str = "reference", device: str | None = None, progr
     scattering): the fastest technique whose measured error on the scene's family meets it
     (``frame.technique``; ``frame.choice`` says why), else the reference.
     """
+    if overrides:
+        scene = load_scene(scene, overrides)
     if technique == "auto":
         return render_auto(scene, device, progress, settings)
     if "target_error" in settings:

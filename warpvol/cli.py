@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import time
 
@@ -52,11 +53,15 @@ def _finite_float(text: str) -> float:
     return value
 
 
+SCENE_TOP_LEVEL = ("name", "background", "camera", "lights", "media", "surfaces")
+
+
 def _parse_set(values: list[str], technique: str) -> tuple[dict, list[str]]:
     """Split ``--set`` items into the technique's settings and scene overrides; a plain key that
     belongs to another technique is an error here, not an unknown scene key later."""
     from warpvol.pipeline import SettingsError
     from warpvol.scene.load import tomllib
+    from warpvol.names import closest
     from warpvol.techniques import TECHNIQUES
 
     spec = TECHNIQUES[technique].SETTINGS if technique != "auto" else {}
@@ -70,6 +75,11 @@ def _parse_set(values: list[str], technique: str) -> tuple[dict, list[str]]:
                 settings[key] = value
             continue
         owners = [name for name, cls in TECHNIQUES.items() if key in cls.SETTINGS]
+        typo = closest(key, spec) if "." not in key and key not in SCENE_TOP_LEVEL else None
+        if typo and not owners:
+            raise SettingsError(f"--set {item}: {key} is not a setting of {technique}; did you mean {typo}? "
+                                f"(allowed for {technique}: {', '.join(sorted(spec))}; or a scene key such as "
+                                f"camera.width)")
         if owners:
             raise SettingsError(f"--set {item}: {key} is a setting of {' and '.join(owners)}, not of {technique} "
                                 f"(allowed for {technique}: {', '.join(sorted(spec)) or 'no settings'}; "
@@ -84,6 +94,8 @@ def cmd_render(args) -> int:
     from warpvol.image import check_output_path
     from warpvol.pipeline import SettingsError
 
+    if not args.out:
+        args.out = [f"{os.path.splitext(os.path.basename(args.scene))[0]}.{args.technique}.png"]
     for out in args.out:  # before anything is loaded or rendered
         check_output_path(out)
     spec = technique_class(args.technique).SETTINGS if args.technique != "auto" else {}
@@ -255,10 +267,21 @@ def cmd_docs(args) -> int:
 
 
 def cmd_scenes(args) -> int:
+    from warpvol.scene import SceneError
     from warpvol.scene.procedural import BUILTIN
+    from warpvol.scene.toml import scene_toml
 
+    if args.name:
+        if args.name not in BUILTIN:
+            from warpvol.names import did_you_mean
+
+            raise SceneError(f"{args.name}: not a built-in scene{did_you_mean(args.name, BUILTIN)} "
+                             f"(allowed: {', '.join(BUILTIN)})")
+        print(scene_toml(args.name, BUILTIN[args.name]()) if args.toml else " ".join(
+            (BUILTIN[args.name].__doc__ or "").split()))
+        return 0
     for name, make in BUILTIN.items():
-        print(f"{name:<16} {(make.__doc__ or '').strip().splitlines()[0]}")
+        print(f"{name:<16} {' '.join((make.__doc__ or '').split())}")
     return 0
 
 
@@ -283,7 +306,8 @@ def main(argv: list[str] | None = None) -> int:
     r.add_argument("scene", help="a .toml scene file or a built-in scene name (see `scenes`)")
     r.add_argument("--technique", default="reference",
                    help=f"{' | '.join(technique_names())} | auto (with --set target_error=E) (default: reference)")
-    r.add_argument("--out", action="append", required=True, help="output image; repeat for several (.exr .png .npy)")
+    r.add_argument("--out", action="append", default=None,
+                   help="output image; repeat for several (.exr .png .npy; default: SCENE.TECHNIQUE.png)")
     r.add_argument("--device", default=None, help="cpu | cuda | cuda:N (default: $WARPVOL_DEVICE, else CUDA if present)")
     r.add_argument("--spp", type=_integer, default=None, help="samples per pixel (reference)")
     r.add_argument("--set", action="append", metavar="KEY=VALUE", help="technique setting or scene key override")
@@ -320,7 +344,9 @@ def main(argv: list[str] | None = None) -> int:
     d.add_argument("--root", default=".", help="the checkout (default: .)")
     d.add_argument("--check", action="store_true", help="write nothing; exit 1 if a page is out of date")
     d.set_defaults(func=cmd_docs)
-    s = sub.add_parser("scenes", parents=[common], help="list the built-in scenes")
+    s = sub.add_parser("scenes", parents=[common], help="list the built-in scenes, or print one (--toml: as a scene file)")
+    s.add_argument("name", nargs="?", default=None, help="a built-in scene: its description, or with --toml its TOML")
+    s.add_argument("--toml", action="store_true", help="print the scene as a TOML file to start your own from")
     s.set_defaults(func=cmd_scenes)
     args = parser.parse_args(argv)
     device.set_verbose(args.verbose)

@@ -17,16 +17,21 @@ def tonemap(image: np.ndarray, exposure: float = 0.0) -> np.ndarray:
     return np.round(srgb * 255.0).astype(np.uint8)
 
 
-def _write_png(path: str, rgb8: np.ndarray):
+def png_bytes(rgb8: np.ndarray) -> bytes:
+    """An H x W x 3 uint8 image as PNG file bytes."""
     h, w, _ = rgb8.shape
     raw = b"".join(b"\x00" + rgb8[r].tobytes() for r in range(h))
 
     def chunk(tag, data):
         return struct.pack(">I", len(data)) + tag + data + struct.pack(">I", zlib.crc32(tag + data) & 0xFFFFFFFF)
 
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(raw, 6)) + chunk(b"IEND", b""))
+
+
+def _write_png(path: str, rgb8: np.ndarray):
     with open(path, "wb") as fh:
-        fh.write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
-                 + chunk(b"IDAT", zlib.compress(raw, 6)) + chunk(b"IEND", b""))
+        fh.write(png_bytes(rgb8))
 
 
 IMAGE_TYPES = (".exr", ".png", ".npy")

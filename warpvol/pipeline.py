@@ -27,6 +27,9 @@ from typing import Callable, NamedTuple
 import numpy as np
 import warp as wp
 
+from .image import png_bytes, tonemap
+from .names import did_you_mean
+
 PARTS = ("medium", "lights", "camera", "surfaces", "background")
 
 
@@ -47,7 +50,8 @@ def resolve_settings(technique: str, spec: dict[str, Setting], given: dict, base
     out = dict(base) if base is not None else {k: s.default for k, s in spec.items()}
     for key, value in given.items():
         if key not in spec:
-            raise SettingsError(f"{technique}: unknown setting {key!r} (allowed: {', '.join(sorted(spec))})")
+            raise SettingsError(f"{technique}: unknown setting {key!r}{did_you_mean(key, spec)} "
+                                f"(allowed: {', '.join(sorted(spec))})")
         s = spec[key]
         kind = type(s.default)
         allowed = f"allowed: {s.lo:.10g}..{s.hi:.10g}; {s.doc}"
@@ -232,6 +236,10 @@ class Frame:
         self.device = device
         self.settings = settings
         self.stages = stages
+
+    def _repr_png_(self) -> bytes:
+        """The image as a PNG (sRGB, exposure 0): what a notebook (Jupyter, IPython) shows for a Frame."""
+        return png_bytes(tonemap(self.image))
 
     @property
     def image(self) -> np.ndarray:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 
 from . import device as dev
+from .names import did_you_mean
 from .pipeline import PARTS, Frame, Pipeline, SettingsError, resolve_settings
 from .scene import load_scene
 from .scene.load import parse_part
@@ -22,7 +23,8 @@ def technique_class(name: str):
     from .techniques import TECHNIQUES
 
     if name not in TECHNIQUES:
-        raise SettingsError(f"unknown technique {name!r} (allowed: {', '.join(sorted(TECHNIQUES))})")
+        raise SettingsError(f"unknown technique {name!r}{did_you_mean(name, TECHNIQUES)} "
+                            f"(allowed: {', '.join(sorted(TECHNIQUES))})")
     return TECHNIQUES[name]
 
 
@@ -44,10 +46,10 @@ class Renderer:
     """
 
     def __init__(self, scene, technique: str = "reference", device: str | None = None, progress: bool = False,
-                 *, one_shot: bool = False, **settings):
+                 *, one_shot: bool = False, overrides: list[str] | dict | None = None, **settings):
         cls = technique_class(technique)
         resolved = resolve_settings(technique, cls.SETTINGS, settings)
-        self._technique = cls(load_scene(scene), dev.pick(device), resolved, progress)
+        self._technique = cls(load_scene(scene, overrides), dev.pick(device), resolved, progress)
         self._technique.one_shot = bool(one_shot)
         self._pipeline = Pipeline(self._technique)
 

@@ -40,6 +40,8 @@ the lights and the sky once, not the field. Everything converges to the all-orde
 the nodes and directions rise (error ~ 1/n, 1/D), up to the light leaking through surfaces
 thinner than a cell, whose two sides share nodes.
 
+The lattice stops just inside the walls that enclose the lights where the media's bounds pass
+them (``enclosed``): nodes behind a wall would blend the dark outside into the light inside.
 Where even cells would span more than a mean free path of media far wider than the camera's
 and the lights' surroundings (fog that fills the world), the nodes are graded: node u at
 c + s sinh(alpha (u - uc)) per axis, fine around the camera and lights and growing
@@ -483,6 +485,58 @@ def toward_eye(offset: int, m: Media, lat: Lattice, sigma_s: wp.array(dtype=wp.v
         out[q] = s / float(D)
 
 
+def _first_hit(vertices: np.ndarray, faces: np.ndarray, o: np.ndarray, d: np.ndarray) -> float:
+    """Distance along o + t d to the nearest triangle (Moller-Trumbore over all of them), or inf."""
+    a, b, c = vertices[faces[:, 0]], vertices[faces[:, 1]], vertices[faces[:, 2]]
+    e1, e2 = b - a, c - a
+    p = np.cross(d, e2)
+    det = np.einsum("ij,ij->i", e1, p)
+    ok = np.abs(det) > 1e-12
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    s = o - a
+    u = np.einsum("ij,ij->i", s, p) * inv
+    q = np.cross(s, e1)
+    v = (q @ d) * inv
+    t = np.einsum("ij,ij->i", e2, q) * inv
+    hit = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 1e-9)
+    return float(t[hit].min()) if np.any(hit) else np.inf
+
+
+#: How far inside an enclosing wall the lattice stops, as a fraction of the enclosure's size.
+WALL_INSET = 0.005
+
+
+def enclosed(scene, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The lattice's bounds, the media's cut back to the walls that enclose the lights: where a
+    ray from the point and spot lights' centroid along an axis meets a surface at the surfaces'
+    bounding box and the media reach past it (a Cornell box around Gaussians whose tails pass
+    its walls), the bound stops just inside that wall. Nodes beyond a wall would hold the dark
+    outside and, interpolated across the wall, darken the light inside (trilinear lookups do
+    not know about surfaces); an open side (the Cornell box's front) keeps the media's bound."""
+    lights = [np.asarray(li.position, np.float64) for li in scene.lights if getattr(li, "position", None) is not None]
+    if not lights or not scene.surfaces:
+        return lo, hi
+    vertices = np.concatenate([np.asarray(sf.vertices, np.float64) for sf in scene.surfaces])
+    offsets = np.cumsum([0] + [len(sf.vertices) for sf in scene.surfaces[:-1]])
+    faces = np.concatenate([np.asarray(sf.faces, np.int64) + k for sf, k in zip(scene.surfaces, offsets)])
+    box_lo, box_hi = vertices.min(axis=0), vertices.max(axis=0)
+    inset = WALL_INSET * float(np.max(box_hi - box_lo))
+    o = np.mean(lights, axis=0)
+    lo, hi = lo.copy(), hi.copy()
+    for a in range(3):
+        for sign, face in ((-1.0, box_lo[a]), (1.0, box_hi[a])):
+            d = np.zeros(3)
+            d[a] = sign
+            t = _first_hit(vertices, faces, o, d)
+            if not np.isfinite(t) or abs(o[a] + sign * t - face) > inset:
+                continue  # open, or the first surface that way is not the enclosure's wall
+            if sign < 0 and lo[a] < face:
+                lo[a] = face + inset
+            elif sign > 0 and hi[a] > face:
+                hi[a] = face - inset
+    return lo, hi
+
+
 #: The lattice grades its nodes on an axis where an even cell would span more than a mean free
 #: path and the media are wider than GRADE_ABOVE times the region that matters (the camera and
 #: the lights, FOCUS_FREE_PATHS mean free paths around): e.g. a light inside fog that fills the
@@ -591,7 +645,7 @@ class MultipleScattering:
         lat.n = n
         lo, hi = np.array(m.all_min, np.float64), np.array(m.all_max, np.float64)
         pad = 1.0e-4 * max(float(np.max(hi - lo)), 1.0e-6)
-        lo, hi = lo - pad, hi + pad
+        lo, hi = enclosed(self.t.scene, lo - pad, hi + pad)
         lat.lo, lat.hi = wp.vec3(*lo), wp.vec3(*hi)
         c, s, alpha, uc = graded_spacing(lo, hi, n, *focus(self.t.scene))
         lat.spacing = Spacing()

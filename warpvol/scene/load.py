@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import copy
 import importlib.util
+import json
 import math
 import os
 import sys
@@ -27,6 +28,8 @@ else:  # pragma: no cover
 class SceneError(ValueError):
     """A scene file or dict that cannot be rendered; the message names file, key and range."""
 
+
+from ..names import closest, did_you_mean
 
 _REQUIRED = object()
 
@@ -60,7 +63,9 @@ class _Table:
                            None if default is _REQUIRED else default, allowed))
         if name not in self.data:
             if default is _REQUIRED:
-                self.fail(self.key(name), "missing", allowed or "a value: this key is required")
+                typo = closest(name, [k for k in self.data if k not in self.used])
+                problem = f"missing (there is a key {typo!r}: a misspelling of {name}?)" if typo else "missing"
+                self.fail(self.key(name), problem, allowed or "a value: this key is required")
             return default
         return self.data[name]
 
@@ -125,7 +130,7 @@ class _Table:
     def finish(self):
         extra = sorted(set(self.data) - self.used)
         if extra:
-            self.fail(self.key(extra[0]), "unknown key", ", ".join(sorted(self.used)))
+            self.fail(self.key(extra[0]), "unknown key" + did_you_mean(extra[0], self.used), ", ".join(sorted(self.used)))
 
 
 def _range_text(lo, hi, lo_open, hi_open, integer):
@@ -551,9 +556,24 @@ def apply_overrides(data: dict, assignments: list[str], source: str) -> dict:
     return data
 
 
-def load_scene(scene, overrides: list[str] | None = None) -> Scene:
-    """A Scene from a .toml path, a built-in scene name, a dict, or a Scene (returned as is)."""
+def override_items(overrides) -> list[str]:
+    """Overrides as the CLI's ``KEY=VALUE`` strings, from those or from a {dotted key: value}
+    dict (``{"camera.width": 320, "media.0.sigma_t": [1, 2, 3]}``; values as in TOML)."""
+    if overrides is None:
+        return []
+    if isinstance(overrides, dict):
+        return [f"{k}={json.dumps(v.tolist() if hasattr(v, 'tolist') else v)}" for k, v in overrides.items()]
+    return list(overrides)
+
+
+def load_scene(scene, overrides: list[str] | dict | None = None) -> Scene:
+    """A Scene from a .toml path, a built-in scene name, a dict, or a Scene (returned as is);
+    ``overrides`` (``override_items``) change keys by their dotted path, as ``--set`` does."""
+    overrides = override_items(overrides)
     if isinstance(scene, Scene):
+        if overrides:
+            raise SceneError(f"overrides {', '.join(overrides)}: apply to a scene file, built-in name or dict "
+                             "(allowed: for a loaded Scene, dataclasses.replace, or Renderer.update)")
         return scene
     if isinstance(scene, dict):
         return scene_from_dict(apply_overrides(scene, overrides or [], "<dict>"), "<dict>", ".")
