@@ -80,7 +80,8 @@ def test_typos_are_answered_with_the_name_meant(tmp_path):
         wv.render("fog-box", "raymarh")
     with pytest.raises(wv.SceneError, match=r"sigma_t: missing \(there is a key 'sigma_tt': a misspelling of sigma_t\?\)"):
         wv.load_scene({"camera": {"origin": [0, 0, 3], "target": [0, 0, 0], "width": 4, "height": 3},
-                       "media": [{"type": "homogeneous", "shape": "sphere", "radius": 1, "sigma_tt": 0.5}]})
+                       "media": [{"type": "homogeneous", "shape": "sphere", "radius": 1, "sigma_tt": 0.5,
+                                  "albedo": 0.5}]})
     with pytest.raises(wv.SceneError, match=r"camera: missing \(there is a key 'camra'"):
         wv.load_scene({"camra": {}, "media": []})
     with pytest.raises(wv.SceneError, match=r"albdo: unknown key; did you mean albedo\?"):

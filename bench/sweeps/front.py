@@ -55,6 +55,9 @@ def front_grid(quick: bool) -> list[dict]:
                 except (wv.SettingsError, ValueError):
                     continue
             levels = levels[:1] if quick else levels
+            if technique == "reference":  # at pixel centres, as the truth and the real-time techniques
+                out += [{"family": family, "technique": technique, knob: v, "pixel_area": 0} for v in levels]
+                continue
             if technique not in MARCHERS:
                 out += [{"family": family, "technique": technique, knob: v} for v in levels]
                 continue

@@ -14,6 +14,7 @@ import tempfile
 import numpy as np
 
 from . import load
+from .load import REQUIRED
 
 #: (table, key) -> what it is, with units. Table is the key's place with list indices dropped
 #: ("media.phase"); a key whose meaning depends on the variant is keyed (table, key, variant).
@@ -176,9 +177,15 @@ def meaning(table: str, variant: str, key: str) -> str | None:
     return MEANING.get((table, key, variant), MEANING.get((table, key)))
 
 
+#: Ranges that depend on another key (the recorded one is the example scene's).
+DYNAMIC_RANGE = {("lights", "inner_angle"): "number in [0, outer_angle]"}
+
+
 def _default_text(default, kind: str) -> str:
-    if default is None:
+    if default is REQUIRED:
         return "required"
+    if default is None:
+        return "not set (see its meaning)"
     if isinstance(default, bool):
         return "true" if default else "false"
     if isinstance(default, (tuple, list)):
@@ -246,6 +253,7 @@ def page() -> str:
         for _, variant, key, kind, default, allowed in rows:
             text = meaning(table, variant, key) or ""
             shown = "the file name's stem" if (table, key) == ("", "name") else _default_text(default, kind)
+            allowed = DYNAMIC_RANGE.get((table, key), allowed)
             lines.append(f"| `{key}` | {variant} | {kind} | {allowed.replace('|', '&#124;')} | {shown} | {text} |")
         lines.append("")
     return "\n".join(lines)

@@ -32,6 +32,7 @@ class SceneError(ValueError):
 from ..names import closest, did_you_mean
 
 _REQUIRED = object()
+REQUIRED = "required"  # what RECORD holds for a key without a default
 
 #: While not None, every key a ``_Table`` reads is appended here as (table, variant, key, kind,
 #: default, allowed): how ``warpvol.scene.doc`` writes docs/scene-format.md from the loader itself.
@@ -60,7 +61,7 @@ class _Table:
         if RECORD is not None:
             variant = self.data.get("type", self.data.get("kind", "")) if name not in ("type", "kind") else ""
             RECORD.append((self.where, variant if isinstance(variant, str) else "", name, kind,
-                           None if default is _REQUIRED else default, allowed))
+                           REQUIRED if default is _REQUIRED else default, allowed))
         if name not in self.data:
             if default is _REQUIRED:
                 typo = closest(name, [k for k in self.data if k not in self.used])
@@ -84,7 +85,8 @@ class _Table:
         return int(v) if integer else float(v)
 
     def vec3(self, name, default=_REQUIRED, lo=-math.inf, hi=math.inf, scalar_ok=False, lo_open=False):
-        allowed = ("a number or " if scalar_ok else "") + "[x, y, z], each a " + _range_text(lo, hi, lo_open, False, False)
+        each = _range_text(lo, hi, lo_open, False, False)
+        allowed = ("a number or " if scalar_ok else "") + "[x, y, z], each " + ("" if each.startswith("any") else "a ") + each
         v = self.raw(name, default, allowed, "number or [x, y, z]" if scalar_ok else "[x, y, z]")
         if v is default and default is not _REQUIRED:
             return tuple(float(x) for x in v) if isinstance(v, (list, tuple)) else v
