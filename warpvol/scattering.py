@@ -485,6 +485,11 @@ def toward_eye(offset: int, m: Media, lat: Lattice, sigma_s: wp.array(dtype=wp.v
         out[q] = s / float(D)
 
 
+def light_positions(scene) -> list[np.ndarray]:
+    """Where the point and spot lights are (directional lights have no position)."""
+    return [np.asarray(li.position, np.float64) for li in scene.lights if li.type in ("point", "spot")]
+
+
 def _first_hit(vertices: np.ndarray, faces: np.ndarray, o: np.ndarray, d: np.ndarray) -> float:
     """Distance along o + t d to the nearest triangle (Moller-Trumbore over all of them), or inf."""
     a, b, c = vertices[faces[:, 0]], vertices[faces[:, 1]], vertices[faces[:, 2]]
@@ -513,7 +518,7 @@ def enclosed(scene, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndar
     its walls), the bound stops just inside that wall. Nodes beyond a wall would hold the dark
     outside and, interpolated across the wall, darken the light inside (trilinear lookups do
     not know about surfaces); an open side (the Cornell box's front) keeps the media's bound."""
-    lights = [np.asarray(li.position, np.float64) for li in scene.lights if getattr(li, "position", None) is not None]
+    lights = light_positions(scene)
     if not lights or not scene.surfaces:
         return lo, hi
     vertices = np.concatenate([np.asarray(sf.vertices, np.float64) for sf in scene.surfaces])
@@ -530,9 +535,9 @@ def enclosed(scene, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndar
             t = _first_hit(vertices, faces, o, d)
             if not np.isfinite(t) or abs(o[a] + sign * t - face) > inset:
                 continue  # open, or the first surface that way is not the enclosure's wall
-            if sign < 0 and lo[a] < face:
+            if sign < 0 and lo[a] < face - inset:  # the media pass the wall (not merely meet it)
                 lo[a] = face + inset
-            elif sign > 0 and hi[a] > face:
+            elif sign > 0 and hi[a] > face + inset:
                 hi[a] = face - inset
     return lo, hi
 
@@ -555,8 +560,7 @@ def focus(scene) -> tuple:
     sigma = min(float(np.min(mm.sigma_t)) for mm in scene.media)
     if sigma <= 0.0:
         return None, None, 0.0
-    points = [np.asarray(scene.camera.origin, np.float64)]
-    points += [np.asarray(li.position, np.float64) for li in scene.lights if getattr(li, "position", None) is not None]
+    points = [np.asarray(scene.camera.origin, np.float64)] + light_positions(scene)
     points = np.array(points)
     reach = FOCUS_FREE_PATHS / sigma
     return points.min(axis=0) - reach, points.max(axis=0) + reach, sigma
