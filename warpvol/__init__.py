@@ -12,6 +12,7 @@ import warp as _wp
 
 _wp.config.log_level = _wp.LOG_WARNING  # no init banner, no "Module ... load" lines (device.set_verbose)
 
+from .animation import Animation, animate, save_animation  # noqa: E402
 from .api import Renderer, render, technique_class, technique_names  # noqa: E402
 from .image import load_image, save_image  # noqa: E402
 from .media.grid import save_volume  # noqa: E402
@@ -22,4 +23,4 @@ from .upload import extinction_volume  # noqa: E402
 
 __version__ = "0.1.0"
 
-__all__ = ["Frame", "Renderer", "Scene", "SceneError", "SettingsError", "extinction_volume", "load_image", "load_scene", "relative_rmse", "render", "rmse", "save_image", "save_volume", "technique_class", "technique_names"]
+__all__ = ["Animation", "Frame", "Renderer", "animate", "save_animation", "Scene", "SceneError", "SettingsError", "extinction_volume", "load_image", "load_scene", "relative_rmse", "render", "rmse", "save_image", "save_volume", "technique_class", "technique_names"]

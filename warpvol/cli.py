@@ -136,6 +136,28 @@ def cmd_render(args) -> int:
     return 0
 
 
+def cmd_animate(args) -> int:
+    import warpvol as wv
+    from warpvol.animation import check_output
+    from warpvol.pipeline import SettingsError
+
+    paths = [(p, n) for p, n in (("orbit", args.orbit), ("dolly", args.dolly), ("light", args.light)) if n]
+    if len(paths) != 1:
+        raise SettingsError("animate: give one of --orbit N, --dolly N, --light N (allowed: exactly one path)")
+    path, frames = paths[0]
+    if not args.out:
+        args.out = f"{os.path.splitext(os.path.basename(args.scene))[0]}.{args.technique}.{path}.gif"
+    check_output(args.out)
+    settings, overrides = _parse_set(args.set or [], args.technique)
+    scene = wv.load_scene(args.scene, overrides)
+    anim = wv.animate(scene, args.technique, path=path, frames=frames, device=args.device, progress=True,
+                      out=args.out, fps=args.fps, exposure=args.exposure, **settings)
+    first, *stages = anim.summary().splitlines()
+    print(f"{scene.name}: {args.technique}, {scene.camera.width}x{scene.camera.height}, {first} -> {args.out}")
+    print("\n".join(stages))
+    return 0
+
+
 def _on_cluster(args) -> bool:
     return args.workers is not None or args.scheduler is not None
 
@@ -323,6 +345,21 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument("--out", default="results", help="results folder (default: results)")
     _cluster_arguments(b, "run the sweep's points as tasks on")
     b.set_defaults(func=cmd_bench)
+    a = sub.add_parser("animate", parents=[common], help="render a camera orbit or dolly, or the lights going "
+                                                         "round, as a GIF, an MP4 or a folder of PNG frames")
+    a.add_argument("scene", help="a .toml scene file or a built-in scene name (see `scenes`)")
+    a.add_argument("--technique", default="light_shafts", help="any technique (default: light_shafts)")
+    a.add_argument("--orbit", type=_integer, default=0, metavar="N", help="N frames: the camera once round its target")
+    a.add_argument("--dolly", type=_integer, default=0, metavar="N", help="N frames: the camera halfway in to its target")
+    a.add_argument("--light", type=_integer, default=0, metavar="N", help="N frames: the lights once round the target")
+    a.add_argument("--out", default=None, help="X.gif, X.mp4 (the [video] extra) or a folder for PNG frames "
+                                               "(default: SCENE.TECHNIQUE.PATH.gif)")
+    a.add_argument("--fps", type=_finite_float, default=24.0, help="frames per second of the GIF or MP4 (default 24)")
+    a.add_argument("--exposure", type=_finite_float, default=0.0, help="exposure in stops (default 0)")
+    a.add_argument("--device", default=None, help="cpu | cuda | cuda:N (default: $WARPVOL_DEVICE, else CUDA if present)")
+    a.add_argument("--set", action="append", metavar="KEY=VALUE", help="technique setting or scene key override")
+    a.set_defaults(func=cmd_animate)
+
     v = sub.add_parser("view", parents=[common], help="look at a scene in pyvista: media, lights, surfaces, camera")
     v.add_argument("scene", help="a .toml scene file or a built-in scene name")
     v.add_argument("--screenshot", default=None, help="render off screen to this PNG instead of opening a window")
