@@ -5,6 +5,8 @@ the target). ``warpvol.render`` documents both; results/target-error measures ho
 
 from __future__ import annotations
 
+import sys
+import time
 import warnings
 
 import numpy as np
@@ -140,9 +142,20 @@ def render_to_target(scene, technique: str, device, progress: bool, target: floa
                 continue
             if b.when == "rbf" and not any(m.type == "rbf" for m in scene.media):
                 continue
-            hi = cls.SETTINGS[b.setting].hi
+            hi = cls.SETTINGS[b.setting].hi if b.top is None else b.top
             limit = b.exact if b.exact is not None else min(value * b.factor, hi)
-            if limit == value or (b.exact is None and value == 0):  # at its limit, or off (0: left out)
+            if b.exact is None and value == 0:  # off (0: left out)
+                continue
+            if limit == value:
+                if b.top is None or b.exact is not None:  # at its limit: no bias left
+                    continue
+                # at the top target_error takes it to (the cost), short of the limit: its bias
+                # measured against the level below (an over-estimate: that level's own), not moved
+                lower = type(value)(max(value // b.factor, 1))
+                if lower == value:
+                    continue
+                img = _level_image(scene, technique, device, progress, {**current, b.setting: lower}, q, seed, level)
+                biases[b.setting] = bias_error(frame.image, img, b)
                 continue
             extra = {**current, b.setting: type(value)(limit)}
             img = _level_image(scene, technique, device, progress, extra, q, seed, level)
@@ -154,7 +167,10 @@ def render_to_target(scene, technique: str, device, progress: bool, target: floa
         if total <= target:
             frame.error_estimate = total
             return frame
-        movable = {k: e for k, e in biases.items() if k not in settings}
+        fixed = sum(e * e for k, e in biases.items() if k in settings or k not in limits)
+        if fixed >= target**2:  # the biases nothing may move (given, or at their top) exceed it alone
+            break
+        movable = {k: e for k, e in biases.items() if k not in settings and k in limits}
         worst = max(movable, key=movable.get) if movable else None
         rest = target**2 - sum(e * e for e in biases.values())
         if worst is not None and (movable[worst] > 0.5 * target or rest < (0.25 * target) ** 2):
@@ -170,6 +186,12 @@ def render_to_target(scene, technique: str, device, progress: bool, target: floa
                   f"(biases measured: {', '.join(f'{k} {e:.3g}' for k, e in biases.items()) or 'none'})",
                   RuntimeWarning, stacklevel=3)
     return frame
+
+
+def _say(progress: bool, line: str) -> None:
+    """A search's progress, one line on stderr (where the progress bars go), when ``progress``."""
+    if progress:
+        print(line, file=sys.stderr, flush=True)
 
 
 def _two_seeds(scene, technique, device, progress, settings: dict, seed: str):
@@ -200,11 +222,19 @@ def _render_spp(scene, technique, device, progress, target: float, settings: dic
     # the samples are raised until the estimate is under SPP_MARGIN of the target
     aim = SPP_MARGIN * target
     while True:
+        t0 = time.perf_counter()
         frame, _, estimate = _two_seeds(scene, technique, device, progress, {**settings, q.knob: level}, seed)
+        took = time.perf_counter() - t0
         if estimate <= aim or level >= limit:
+            _say(progress, f"target_error: {technique} {q.knob} = {2 * level}: estimate {estimate:.3g} "
+                           f"(target {target:g}), {took:.1f} s")
             break
         # the error falls as spp^-1/2: jump to the count the target needs
+        level_was = level
         level = min(limit, int(level * max(2.0, (estimate / aim) ** (1.0 / q.order))))
+        _say(progress, f"target_error: {technique} {q.knob} = {2 * level_was}: estimate {estimate:.3g} "
+                       f"(target {target:g}), {took:.1f} s; next {q.knob} = {2 * level}, about "
+                       f"{took * level / level_was:.0f} s")
     frame.settings[q.knob] = 2 * level
     frame.error_estimate = estimate
     if estimate > target:
@@ -240,6 +270,9 @@ def _ladder(scene, technique, device, progress, target: float, settings: dict, q
         estimate = float("inf")
         if len(images) >= 3:
             estimate = float(np.hypot(remaining_error(images, spreads, q.order), spreads[-1]))
+        _say(progress, f"target_error: {technique} {q.knob} = {level}: "
+                       + (f"estimate {estimate:.3g} (target {target:g})" if np.isfinite(estimate)
+                          else f"{len(images)} of the 3 levels an estimate needs"))
         if 2 * level > q.top:  # no finer level to measure against: the extrapolation stands
             frame = _with_image(frame, images[-1], frame.settings)
             if not np.isfinite(estimate) and len(images) >= 2:  # the coarser level's measured error, one doubling on
@@ -296,6 +329,8 @@ def render_auto(scene, device, progress: bool, settings: dict) -> Frame:
                             f"({', '.join(f'{k}={v}' for k, v in m['settings'].items())}; {table['device']}, "
                             f"{table['image']})")
             return frame
+    _say(progress, f"auto: {why}; the reference, to {target:g} by its own noise (its samples rise until "
+                   "then: the lines below say what each level cost and what the next will)")
     frame = render_to_target(scene, "reference", device, progress, target, {})
     frame.choice = f"reference: {why}; to {target:g} by its own noise"
     return frame

@@ -74,13 +74,16 @@ class Bias:
     against ``factor`` times the value, the difference scaled to the whole bias as an error
     of order ``order`` (|x(v) - x(f v)| / (1 - f^-order)). ``when``: the scene part that must
     be present for the setting to matter (``"sky"``: a non-black background; ``"multiple"``:
-    the multiple-scattering term on; ``"rbf"``: an RBF medium), or None."""
+    the multiple-scattering term on; ``"rbf"``: an RBF medium), or None. ``top``: the most
+    ``target_error`` takes the setting to (None: its range's top), where its cost rises
+    steeply (the lattice's n^4 D)."""
 
     setting: str
     exact: object = None
     factor: int = 4
     order: float = 1.0
     when: str | None = None
+    top: object = None
 
 
 @dataclass(frozen=True, kw_only=True)
