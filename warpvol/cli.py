@@ -243,6 +243,28 @@ def cmd_view(args) -> int:
     return 0
 
 
+def cmd_live(args) -> int:
+    from warpvol.viz.live import LiveView
+
+    if not args.verbose:
+        from vtkmodules.vtkCommonCore import vtkObject
+
+        vtkObject.GlobalWarningDisplayOff()
+    settings, overrides = _parse_set(args.set or [], args.technique)
+    import warpvol as wv
+
+    w, h = (int(x) for x in args.size.lower().split("x"))
+    scene = wv.load_scene(args.scene, [*overrides, f"camera.width={w}", f"camera.height={h}"])
+    live = LiveView(scene, args.technique, args.device, **settings)
+    off = args.screenshot is not None
+    live.show(off_screen=off, frames=args.frames, screenshot=args.screenshot)
+    if off or args.frames:
+        print(f"{scene.name}: live {live.technique}, {w}x{h}, {len(live.times)} of the last frames at "
+              f"{live.fps:.1f} FPS (camera stages: {', '.join(live.ran)})"
+              + (f" -> {args.screenshot}" if off else ""))
+    return 0
+
+
 def cmd_demo(args) -> int:
     """A real-time technique and the reference side by side, each with its time and error."""
     import numpy as np
@@ -368,6 +390,17 @@ def main(argv: list[str] | None = None) -> int:
                    "(light_shafts: shadow-map depth surfaces, lit slice; rbf_propagation: OPV error per cell)")
     v.add_argument("--device", default=None, help="cpu | cuda (for --technique)")
     v.set_defaults(func=cmd_view)
+    lv = sub.add_parser("live", parents=[common], help="a window whose image re-renders as you drag the camera "
+                                                        "round (t: next technique, r: the reference)")
+    lv.add_argument("scene", help="a .toml scene file or a built-in scene name")
+    lv.add_argument("--technique", default="light_shafts", help="the technique to start with (default: light_shafts)")
+    lv.add_argument("--size", default="160x120", help="the rendered image, WxH (default 160x120)")
+    lv.add_argument("--frames", type=_integer, default=0, metavar="N", help="orbit once round by itself in N frames")
+    lv.add_argument("--screenshot", default=None, help="run off screen (with --frames) and save the last view here")
+    lv.add_argument("--device", default=None, help="cpu | cuda | cuda:N (default: $WARPVOL_DEVICE, else CUDA if present)")
+    lv.add_argument("--set", action="append", metavar="KEY=VALUE", help="technique setting or scene key override")
+    lv.set_defaults(func=cmd_live)
+
     e = sub.add_parser("demo", parents=[common], help="a real-time technique and the reference side by side, "
                        "with each one's time and error (the first thing to run)")
     e.add_argument("scene", nargs="?", default="hazy-sun", help="a scene file or built-in name (default: hazy-sun)")
