@@ -28,6 +28,6 @@ def test_side_by_side(tmp_path):
 
 
 def test_target_error(tmp_path):
-    r = run("target_error.py", "--size", "16x12", cwd=tmp_path)
+    r = run("target_error.py", "--size", "16x12", "--target", "0.1", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     assert "estimated error" in r.stdout and "auto: " in r.stdout

@@ -717,7 +717,10 @@ class MultipleScattering:
             self.orders = k
             if previous is not None:
                 r = np.where(previous > 0.0, energy / np.maximum(previous, 1e-300), 0.0)
-                done = np.all(energy <= 1.0e-6 * total_energy) or np.all(np.abs(r - ratio) <= SETTLED * np.maximum(r, 1e-12))
+                # a ratio at the cap (light still spreading, order after order, as early in an
+                # albedo-1 medium) is no ratio to extrapolate from: iterate on
+                settled = np.all(np.abs(r - ratio) <= SETTLED * np.maximum(r, 1e-12)) and np.all(r < MAX_RATIO)
+                done = np.all(energy <= 1.0e-6 * total_energy) or settled
                 ratio = r
                 if done:
                     break
