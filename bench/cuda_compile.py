@@ -3,7 +3,8 @@ CUDA-only build errors on machines that have none:
 
     python -m warpvol.bench.cuda_compile [--arch 90] [module ...]
 
-Modules default to every technique; each takes one to six minutes on two CPU cores. The PTX goes
+Modules default to every technique and the shared kernel modules (``SHARED``); all of them take
+about a minute and a half on two CPU cores. The PTX goes
 to a temporary folder and is thrown away: this checks that the code builds, nothing more.
 """
 
@@ -21,16 +22,21 @@ import warpvol as wv
 from warpvol import device
 
 
+#: The kernel modules besides the techniques' (the lattice, the media's and the rasteriser's).
+SHARED = ("scattering", "media.grid", "media.lightpass", "media.volume", "geometry.raster", "geometry.shadowmap")
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--arch", type=int, default=90, help="SM architecture (90: H100/H200)")
-    p.add_argument("modules", nargs="*", default=wv.technique_names(), help="technique modules (default: all)")
+    p.add_argument("modules", nargs="*", default=[*wv.technique_names(), *SHARED],
+                   help="technique names or warpvol's other kernel modules (default: all of them)")
     args = p.parse_args(argv)
     device.init()
     failed = 0
     with tempfile.TemporaryDirectory() as out:
         for name in args.modules:
-            mod = importlib.import_module(f"warpvol.techniques.{name}")
+            mod = importlib.import_module(f"warpvol.{name}" if name in SHARED else f"warpvol.techniques.{name}")
             t = time.time()
             try:
                 wp.compile_aot_module(mod, arch=args.arch, module_dir=out, use_ptx=True)
