@@ -20,15 +20,10 @@ from collections import deque
 import numpy as np
 
 import warpvol as wv
+from warpvol.animation import rotate
 from warpvol.image import tonemap
 
 DEGREES_PER_PIXEL = 0.5
-
-
-def _rotate(v: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
-    axis = axis / np.linalg.norm(axis)
-    c, s = math.cos(angle), math.sin(angle)
-    return v * c + np.cross(axis, v) * s + axis * np.dot(axis, v) * (1.0 - c)
 
 
 class LiveView:
@@ -64,11 +59,12 @@ class LiveView:
         """Turn the camera about its target: yaw about its up, pitch about its right."""
         cam = self.renderer.scene.camera
         o, t, up = (np.asarray(v, float) for v in (cam.origin, cam.target, cam.up))
-        v = _rotate(o - t, up, math.radians(yaw_deg))
+        up = up / np.linalg.norm(up)
+        v = rotate(o - t, up, math.radians(yaw_deg))
         right = np.cross(v, up)
         if pitch_deg and np.linalg.norm(right) > 0:
-            turned = _rotate(v, right, math.radians(pitch_deg))
-            if abs(np.dot(turned / np.linalg.norm(turned), up / np.linalg.norm(up))) < 0.98:  # not over the pole
+            turned = rotate(v, right / np.linalg.norm(right), math.radians(pitch_deg))
+            if abs(np.dot(turned / np.linalg.norm(turned), up)) < 0.98:  # not over the pole
                 v = turned
         self.renderer.update(camera={"origin": (t + v).tolist()})
         self._ref_sum, self._ref_n = None, 0

@@ -51,7 +51,7 @@ class Animation:
         return "\n".join(lines)
 
 
-def _rotate(v: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
+def rotate(v: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
     """v rotated by angle about the unit axis (Rodrigues)."""
     c, s = math.cos(angle), math.sin(angle)
     return v * c + np.cross(axis, v) * s + axis * np.dot(axis, v) * (1.0 - c)
@@ -65,17 +65,16 @@ def _updates(scene, path: str, frames: int) -> list[dict]:
     out = []
     for k in range(frames):
         if path == "orbit":  # once round the target, about the camera's up
-            o = target + _rotate(origin - target, up, 2.0 * math.pi * k / frames)
+            o = target + rotate(origin - target, up, 2.0 * math.pi * k / frames)
             out.append({"camera": {"origin": o.tolist()}})
         elif path == "dolly":  # halfway in toward the target
             o = target + (origin - target) * (1.0 - 0.5 * k / max(frames - 1, 1))
             out.append({"camera": {"origin": o.tolist()}})
         else:  # every light once round the target, about the camera's up
             angle = 2.0 * math.pi * k / frames
-            lights = [dataclasses.replace(li, position=tuple(target + _rotate(np.asarray(li.position) - target, up,
-                                                                                 angle)),
-                                          direction=tuple(_rotate(np.asarray(li.direction, float), up, angle)))
-                      for li in scene.lights]
+            lights = [dataclasses.replace(
+                li, position=tuple(target + rotate(np.asarray(li.position) - target, up, angle)),
+                direction=tuple(rotate(np.asarray(li.direction, float), up, angle))) for li in scene.lights]
             out.append({"lights": lights})
     return out
 

@@ -53,6 +53,20 @@ def _finite_float(text: str) -> float:
     return value
 
 
+def _stem(scene: str) -> str:
+    """A scene argument's name for default output files: a built-in name, or a file's stem."""
+    return os.path.splitext(os.path.basename(scene))[0]
+
+
+def _quiet_vtk(args) -> None:
+    """Silence VTK's own warnings (e.g. "bad X server connection" off screen) unless --verbose."""
+    if not args.verbose:
+        from vtkmodules.vtkCommonCore import vtkObject
+
+        vtkObject.GlobalWarningDisplayOff()
+
+
+DEVICE_HELP = "cpu | cuda | cuda:N (default: $WARPVOL_DEVICE, else CUDA if present)"
 SCENE_TOP_LEVEL = ("name", "background", "camera", "lights", "media", "surfaces")
 
 
@@ -95,7 +109,7 @@ def cmd_render(args) -> int:
     from warpvol.pipeline import SettingsError
 
     if not args.out:
-        args.out = [f"{os.path.splitext(os.path.basename(args.scene))[0]}.{args.technique}.png"]
+        args.out = [f"{_stem(args.scene)}.{args.technique}.png"]
     for out in args.out:  # before anything is loaded or rendered
         check_output_path(out)
     spec = technique_class(args.technique).SETTINGS if args.technique != "auto" else {}
@@ -146,7 +160,7 @@ def cmd_animate(args) -> int:
         raise SettingsError("animate: give one of --orbit N, --dolly N, --light N (allowed: exactly one path)")
     path, frames = paths[0]
     if not args.out:
-        args.out = f"{os.path.splitext(os.path.basename(args.scene))[0]}.{args.technique}.{path}.gif"
+        args.out = f"{_stem(args.scene)}.{args.technique}.{path}.gif"
     check_output(args.out)
     settings, overrides = _parse_set(args.set or [], args.technique)
     scene = wv.load_scene(args.scene, overrides)
@@ -223,10 +237,7 @@ def cmd_view(args) -> int:
     import warpvol as wv
     from warpvol.viz import scene_plotter, technique_actors
 
-    if not args.verbose:  # e.g. "bad X server connection" when rendering off screen
-        from vtkmodules.vtkCommonCore import vtkObject
-
-        vtkObject.GlobalWarningDisplayOff()
+    _quiet_vtk(args)
     settings, overrides = _parse_set(args.set or [], args.technique) if args.technique else ({}, args.set or [])
     scene = wv.load_scene(args.scene, overrides)
     plotter = scene_plotter(scene, off_screen=args.screenshot is not None)
@@ -246,10 +257,7 @@ def cmd_view(args) -> int:
 def cmd_live(args) -> int:
     from warpvol.viz.live import LiveView
 
-    if not args.verbose:
-        from vtkmodules.vtkCommonCore import vtkObject
-
-        vtkObject.GlobalWarningDisplayOff()
+    _quiet_vtk(args)
     settings, overrides = _parse_set(args.set or [], args.technique)
     import warpvol as wv
 
@@ -310,6 +318,11 @@ def cmd_docs(args) -> int:
     return 1 if args.check and stale else 0
 
 
+def _description(make) -> str:
+    """A built-in scene's docstring on one line."""
+    return " ".join((make.__doc__ or "").split())
+
+
 def cmd_scenes(args) -> int:
     from warpvol.scene import SceneError
     from warpvol.scene.procedural import BUILTIN
@@ -321,11 +334,10 @@ def cmd_scenes(args) -> int:
 
             raise SceneError(f"{args.name}: not a built-in scene{did_you_mean(args.name, BUILTIN)} "
                              f"(allowed: {', '.join(BUILTIN)})")
-        print(scene_toml(args.name, BUILTIN[args.name]()) if args.toml else " ".join(
-            (BUILTIN[args.name].__doc__ or "").split()))
+        print(scene_toml(args.name, BUILTIN[args.name]()) if args.toml else _description(BUILTIN[args.name]))
         return 0
     for name, make in BUILTIN.items():
-        print(f"{name:<16} {' '.join((make.__doc__ or '').split())}")
+        print(f"{name:<16} {_description(make)}")
     return 0
 
 
@@ -352,7 +364,7 @@ def main(argv: list[str] | None = None) -> int:
                    help=f"{' | '.join(technique_names())} | auto (with --set target_error=E) (default: reference)")
     r.add_argument("--out", action="append", default=None,
                    help="output image; repeat for several (.exr .png .npy; default: SCENE.TECHNIQUE.png)")
-    r.add_argument("--device", default=None, help="cpu | cuda | cuda:N (default: $WARPVOL_DEVICE, else CUDA if present)")
+    r.add_argument("--device", default=None, help=DEVICE_HELP)
     r.add_argument("--spp", type=_integer, default=None, help="samples per pixel (reference)")
     r.add_argument("--set", action="append", metavar="KEY=VALUE", help="technique setting or scene key override")
     r.add_argument("--exposure", type=_finite_float, default=0.0, help="PNG exposure in stops (default 0)")
@@ -363,7 +375,7 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument("sweep", nargs="*", help="sweep names, or `report [SWEEP ...]` (see --list)")
     b.add_argument("--list", action="store_true", help="list the sweeps and whether they can run yet")
     b.add_argument("--quick", action="store_true", help="a reduced sweep that finishes in seconds")
-    b.add_argument("--device", default=None, help="cpu | cuda | cuda:N (default: $WARPVOL_DEVICE, else CUDA if present)")
+    b.add_argument("--device", default=None, help=DEVICE_HELP)
     b.add_argument("--out", default="results", help="results folder (default: results)")
     _cluster_arguments(b, "run the sweep's points as tasks on")
     b.set_defaults(func=cmd_bench)
@@ -372,13 +384,14 @@ def main(argv: list[str] | None = None) -> int:
     a.add_argument("scene", help="a .toml scene file or a built-in scene name (see `scenes`)")
     a.add_argument("--technique", default="light_shafts", help="any technique (default: light_shafts)")
     a.add_argument("--orbit", type=_integer, default=0, metavar="N", help="N frames: the camera once round its target")
-    a.add_argument("--dolly", type=_integer, default=0, metavar="N", help="N frames: the camera halfway in to its target")
+    a.add_argument("--dolly", type=_integer, default=0, metavar="N",
+                   help="N frames: the camera halfway in to its target")
     a.add_argument("--light", type=_integer, default=0, metavar="N", help="N frames: the lights once round the target")
     a.add_argument("--out", default=None, help="X.gif, X.mp4 (the [video] extra) or a folder for PNG frames "
                                                "(default: SCENE.TECHNIQUE.PATH.gif)")
     a.add_argument("--fps", type=_finite_float, default=24.0, help="frames per second of the GIF or MP4 (default 24)")
     a.add_argument("--exposure", type=_finite_float, default=0.0, help="exposure in stops (default 0)")
-    a.add_argument("--device", default=None, help="cpu | cuda | cuda:N (default: $WARPVOL_DEVICE, else CUDA if present)")
+    a.add_argument("--device", default=None, help=DEVICE_HELP)
     a.add_argument("--set", action="append", metavar="KEY=VALUE", help="technique setting or scene key override")
     a.set_defaults(func=cmd_animate)
 
@@ -397,7 +410,7 @@ def main(argv: list[str] | None = None) -> int:
     lv.add_argument("--size", default="160x120", help="the rendered image, WxH (default 160x120)")
     lv.add_argument("--frames", type=_integer, default=0, metavar="N", help="orbit once round by itself in N frames")
     lv.add_argument("--screenshot", default=None, help="run off screen (with --frames) and save the last view here")
-    lv.add_argument("--device", default=None, help="cpu | cuda | cuda:N (default: $WARPVOL_DEVICE, else CUDA if present)")
+    lv.add_argument("--device", default=None, help=DEVICE_HELP)
     lv.add_argument("--set", action="append", metavar="KEY=VALUE", help="technique setting or scene key override")
     lv.set_defaults(func=cmd_live)
 
@@ -406,7 +419,7 @@ def main(argv: list[str] | None = None) -> int:
     e.add_argument("scene", nargs="?", default="hazy-sun", help="a scene file or built-in name (default: hazy-sun)")
     e.add_argument("--technique", default="light_shafts", help="the real-time technique (default: light_shafts)")
     e.add_argument("--out", default="demo.png", help="the side-by-side image (default: demo.png)")
-    e.add_argument("--device", default=None, help="cpu | cuda | cuda:N (default: $WARPVOL_DEVICE, else CUDA if present)")
+    e.add_argument("--device", default=None, help=DEVICE_HELP)
     e.add_argument("--set", action="append", metavar="KEY=VALUE", help="scene key override, e.g. camera.width=320")
     e.set_defaults(func=cmd_demo)
     d = sub.add_parser("docs", parents=[common], help="write docs/scene-format.md and the generated tables of docs/ "
@@ -414,7 +427,8 @@ def main(argv: list[str] | None = None) -> int:
     d.add_argument("--root", default=".", help="the checkout (default: .)")
     d.add_argument("--check", action="store_true", help="write nothing; exit 1 if a page is out of date")
     d.set_defaults(func=cmd_docs)
-    s = sub.add_parser("scenes", parents=[common], help="list the built-in scenes, or print one (--toml: as a scene file)")
+    s = sub.add_parser("scenes", parents=[common],
+                       help="list the built-in scenes, or print one (--toml: as a scene file)")
     s.add_argument("name", nargs="?", default=None, help="a built-in scene: its description, or with --toml its TOML")
     s.add_argument("--toml", action="store_true", help="print the scene as a TOML file to start your own from")
     s.set_defaults(func=cmd_scenes)

@@ -174,7 +174,7 @@ class Technique:
         gather (``sky_samples`` = 0, or no such setting) and no multiple-scattering lattice
         approximates (``multiple_scattering`` = 0)."""
         out = list(self.LEAVES_OUT)
-        if has_sky(self.scene) and self.settings.get("sky_samples", 0) == 0 and self.GATHERS_SKY is not True:
+        if has_sky(self.scene) and not self.gathers_sky:
             if self.settings.get("multiple_scattering", 0) > 0:  # the lattice carries it over the media
                 if self.scene.surfaces:
                     out.append("the sky's light reflected by surfaces beyond the media's bounds")
@@ -184,6 +184,12 @@ class Technique:
 
     #: True: the technique gathers the sky's light whatever its settings (e.g. by following paths).
     GATHERS_SKY: bool = False
+
+    @property
+    def gathers_sky(self) -> bool:
+        """Whether the technique gathers the sky's light itself: always (``GATHERS_SKY``) or with
+        ``sky_samples`` > 0 (else the multiple-scattering lattice carries it, where it is on)."""
+        return self.GATHERS_SKY is True or self.settings.get("sky_samples", 0) > 0
 
     #: What ``render(target_error=...)`` raises and measures (``Quality``); None: target_error is
     #: not supported.

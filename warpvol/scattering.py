@@ -124,8 +124,6 @@ class Lattice:
     hi: wp.vec3
     spacing: Spacing
     graded: int  # 0: evenly spaced on every axis
-    step: float  # transport step length: one cell
-    cell: float  # the half cell a point light's 1/d^2 is averaged over
     directions: wp.array(dtype=wp.vec3)  # unit, the direction the radiance travels
 
 
@@ -179,10 +177,7 @@ def lattice_coords(lat: Lattice, x: wp.vec3) -> wp.vec3:
 def cell_size(lat: Lattice, x: wp.vec3) -> wp.vec3:
     """The lattice's cell widths around x, per axis."""
     sp = lat.spacing
-    u = wp.vec3()
-    for a in range(3):
-        u[a] = axis_coord(lat.lo[a], lat.hi[a], lat.n, sp.c[a], sp.s[a], sp.alpha[a], sp.uc[a],
-                          wp.clamp(x[a], lat.lo[a], lat.hi[a]))
+    u = lattice_coords(lat, wp.min(wp.max(x, lat.lo), lat.hi))
     return wp.vec3(axis_width(lat.lo[0], lat.hi[0], lat.n, sp.s[0], sp.alpha[0], sp.uc[0], u[0]),
                    axis_width(lat.lo[1], lat.hi[1], lat.n, sp.s[1], sp.alpha[1], sp.uc[1], u[1]),
                    axis_width(lat.lo[2], lat.hi[2], lat.n, sp.s[2], sp.alpha[2], sp.uc[2], u[2]))
@@ -349,7 +344,8 @@ def reflect_at_ends(offset: int, s: Surfaces, lat: Lattice, ends: Ends, L: wp.ar
     face = ends.face[tid]
     out[tid] = wp.vec3(0.0)
     if face >= 0:
-        out[tid] = reflected_field(L, lat, s.material[face], ends.point[tid], ends.normal[tid], lat.directions[tid / n3])
+        out[tid] = reflected_field(L, lat, s.material[face], ends.point[tid], ends.normal[tid],
+                                   lat.directions[tid / n3])
 
 
 @wp.kernel
@@ -381,6 +377,17 @@ def light_source(offset: int, m: Media, s: Surfaces, lights: wp.array(dtype=Emit
                             q_out[d * n3 + q] = q_out[d * n3 + q] + ph * se
 
 
+@wp.func
+def transport_step(lat: Lattice, sigma_t: wp.array(dtype=wp.vec3), source: wp.array(dtype=wp.vec3), base: int,
+                   with_source: int, xm: wp.vec3, dt: float, L: wp.vec3, tr: wp.vec3):
+    """One step of a characteristic, coefficients at its midpoint xm: (L, tr) after it."""
+    sig = lattice_sample(sigma_t, 0, 1, lat, xm)
+    if with_source != 0:
+        src = lattice_sample(source, base, 1, lat, xm)
+        L += wp.cw_mul(wp.cw_mul(tr, src), step_integral_rgb(sig, dt))
+    return L, wp.cw_mul(tr, transmittance_rgb(sig * dt))
+
+
 @wp.kernel
 def transport(offset: int, lat: Lattice, sigma_t: wp.array(dtype=wp.vec3), source: wp.array(dtype=wp.vec3),
               lengths: wp.array(dtype=float), starts: wp.array(dtype=wp.vec3), with_source: int,
@@ -405,22 +412,13 @@ def transport(offset: int, lat: Lattice, sigma_t: wp.array(dtype=wp.vec3), sourc
         dt = t_end / float(steps)
         t = t_end
         for k in range(steps):
-            xm = x + ((float(k) + 0.5) * dt) * back
-            sig = lattice_sample(sigma_t, 0, 1, lat, xm)
-            if with_source != 0:
-                src = lattice_sample(source, d * n3, 1, lat, xm)
-                L += wp.cw_mul(wp.cw_mul(tr, src), step_integral_rgb(sig, dt))
-            tr = wp.cw_mul(tr, transmittance_rgb(sig * dt))
+            L, tr = transport_step(lat, sigma_t, source, d * n3, with_source, x + ((float(k) + 0.5) * dt) * back,
+                                   dt, L, tr)
     while t < t_end:  # graded: steps of the local cell
         dt = wp.min(wp.min(cell_size(lat, x + t * back)), t_end - t)
         if t_end - t - dt < 1.0e-3 * dt:
             dt = t_end - t
-        xm = x + (t + 0.5 * dt) * back
-        sig = lattice_sample(sigma_t, 0, 1, lat, xm)
-        if with_source != 0:
-            src = lattice_sample(source, d * n3, 1, lat, xm)
-            L += wp.cw_mul(wp.cw_mul(tr, src), step_integral_rgb(sig, dt))
-        tr = wp.cw_mul(tr, transmittance_rgb(sig * dt))
+        L, tr = transport_step(lat, sigma_t, source, d * n3, with_source, x + (t + 0.5 * dt) * back, dt, L, tr)
         t += dt
     out[q * D + d] = L + wp.cw_mul(tr, starts[tid])
 
@@ -622,11 +620,6 @@ class MultipleScattering:
         self.sigma_s = None
 
     @property
-    def gathers_sky(self) -> bool:
-        """Whether the technique gathers the sky's single scattering itself (else the lattice adds it)."""
-        return self.t.GATHERS_SKY is True or self.t.settings.get("sky_samples", 0) > 0
-
-    @property
     def n(self) -> int:
         return self.t.settings["multiple_scattering"] if self.t.scene.media else 0
 
@@ -703,10 +696,10 @@ class MultipleScattering:
             # L_0 joins the total where the march does not gather it itself: always the surfaces'
             # part (the fog lit by the walls, a wall by the others), the sky's unless the
             # technique gathers the sky's single scattering (raymarch's sky_samples)
-            if sky and scene.surfaces and self.gathers_sky:
+            if sky and scene.surfaces and self.t.gathers_sky:
                 dev.launch(surface_starts, size, [ends], device)
                 dev.launch(transport, size, [lat, sigma_t, source, ends.length, ends.start, 0, L], device, work=march)
-            if scene.surfaces or not self.gathers_sky:
+            if scene.surfaces or not self.t.gathers_sky:
                 dev.launch(add_order, size, [L, one, total], device)
         previous, ratio, total_energy = None, np.zeros(3), np.zeros(3)
         for k in range(1, MAX_ORDERS + 1):
