@@ -472,9 +472,71 @@ def multiple_section(rows: list[dict], png: Path) -> list[str]:
     return lines
 
 
+def census_section(rows: list[dict], png: Path) -> list[str]:
+    """The census: per built-in scene and technique its frame time at the scene's own size and at
+    160x120, each over the reference's at 16 spp, the stage that costs most, and the error
+    against the physical answer; a plot of error over the time ratio at 160x120."""
+    from .sweeps.census import CENSUS_SIZE, reference_ms
+
+    by: dict = {}
+    for r in rows:
+        p = r["params"]
+        by.setdefault((p["scene"], p["technique"]), {})[(p["width"], p["height"])] = r
+    lines = ["| scene | technique | own size: ms / frame (÷ reference) | 160x120: ms / frame (÷ reference) | "
+             "costliest stage at 160x120 | error | mean ÷ truth | truth: spp, noise | leaves out |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    over = []
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7.0, 4.6))
+    techniques = list(dict.fromkeys(t for _, t in by))
+    colour = {t: plt.get_cmap("tab10")(i % 10) for i, t in enumerate(techniques)}
+    plotted = set()
+    for (scene, technique), sizes in by.items():
+        cells = []
+        for size in dict.fromkeys([next(iter(sizes)), CENSUS_SIZE]):
+            r = sizes.get(size)
+            ref = reference_ms(rows, scene, size)
+            if r is None:
+                cells.append("–")
+                continue
+            ratio = r["median_ms"] / ref if ref and technique != "reference" else None
+            if ratio is not None and ratio > 1.0:
+                over.append(f"{scene} {technique} {size[0]}x{size[1]} ({ratio:.2f}x)")
+            cells.append(f"{r['median_ms']:.0f}" + (f" ({'**' if ratio > 1 else ''}{ratio:.2f}"
+                                                      f"{'**' if ratio > 1 else ''})" if ratio is not None else ""))
+        if len(cells) == 1 or next(iter(sizes)) == CENSUS_SIZE:
+            cells = [cells[0], "(the same)"]
+        small = next((r for r in sizes.values() if "rel_rmse_corrected" in r), sizes.get(CENSUS_SIZE))
+        stage = err = mean = truth = "–"
+        if small is not None:
+            ran = {k: v["median_ms"] for k, v in small["stages"].items() if v.get("status") == "ran"}
+            if ran:
+                top = max(ran, key=ran.get)
+                stage = f"{top} {ran[top]:.0f} ms"
+            if "rel_rmse_corrected" in small:
+                err, mean = f"{small['rel_rmse_corrected']:.3f}", f"{small['mean_ratio']:.3f}"
+                truth = f"{small['reference']['spp']}, {small['reference']['rel_rmse_floor']:.3f}"
+                ref = reference_ms(rows, scene, (small["params"]["width"], small["params"]["height"]))
+                if ref and technique != "reference":
+                    ax.scatter(small["median_ms"] / ref, max(small["rel_rmse_corrected"], 1e-3), s=18,
+                               color=colour[technique], label=None if technique in plotted else technique)
+                    plotted.add(technique)
+        leaves = "; ".join("multiple scattering, indirect light: approximated (lattice)"
+                           if x.startswith("approximated, not left out") else x
+                           for x in (small["leaves_out"] if small is not None else [])) or "–"
+        lines.append(f"| {scene} | {technique} | {cells[0]} | {cells[1]} | {stage} | {err} | {mean} | {truth} | "
+                     f"{leaves} |")
+    ax.axvline(1.0, color="grey", lw=0.8, ls="--")
+    ax.set(xscale="log", yscale="log", xlabel="frame time ÷ the reference's at 16 spp (160x120)",
+           ylabel="relative RMSE vs the physical answer", title="every built-in scene, each technique at its defaults")
+    _save(fig, ax, png)
+    lines += ["", f"Rows over the reference's time at 16 spp: {'; '.join(over) if over else 'none'}."]
+    return lines
+
+
 SECTIONS = {"multiple": multiple_section, "animated": animated_section, "convergence": convergence_section, "bound": bound_section, "accuracy": accuracy_section, "scaling": scaling_section, "rules": rules_section, "paper": paper_section, "overhead": overhead_section, "speed": speed_section,
             "edges": edges_section, "speedup": speedup_section, "lightpass": lightpass_section, "table": table_section,
-            "front": front_section}
+            "front": front_section, "census": census_section}
 
 
 def write_report(out: Path, name: str) -> Path | None:

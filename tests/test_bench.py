@@ -5,6 +5,8 @@ import json
 
 import pytest
 
+import warpvol as wv
+
 from warpvol.bench.harness import digest, load_rows, write_rows
 from warpvol.bench.report import pareto_front, paper_section
 from warpvol.bench.sweeps import SWEEPS
@@ -75,3 +77,23 @@ def test_pareto_front_and_digest():
     assert pareto_front([(1.0, 0.5), (2.0, 0.6), (3.0, 0.1), (0.5, 0.9)]) == [3, 0, 2]
     assert digest({"a": [1, 2]}) == digest({"a": [1, 2]}) != digest({"a": [1, 3]})
     json.dumps(SWEEPS["raymarch-accuracy"].points(quick=True))  # points are plain data, for any executor
+
+
+def test_the_census_covers_every_built_in_scene_at_both_sizes():
+    """``bench defaults``: every built-in scene, every technique whose Renderer takes it, at the
+    scene's own size and at 160x120 (once where they are the same), the reference at 16 spp."""
+    from warpvol.bench.sweeps.census import CENSUS_SIZE, census_grid
+    from warpvol.scene import BUILTIN
+
+    points = census_grid(quick=False)
+    assert {p["scene"] for p in points} == set(BUILTIN)
+    for name in BUILTIN:
+        own = wv.load_scene(name).camera
+        sizes = {(own.width, own.height), CENSUS_SIZE}
+        rows = [p for p in points if p["scene"] == name]
+        techniques = {p["technique"] for p in rows}
+        assert "reference" in techniques and len(techniques) >= 3
+        for t in techniques:
+            assert {(p["width"], p["height"]) for p in rows if p["technique"] == t} == sizes
+            assert sum(p["technique"] == t for p in rows) == len(sizes)
+        assert all(p["spp"] == 16 for p in rows if p["technique"] == "reference")

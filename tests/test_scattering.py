@@ -7,8 +7,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import warp as wp
 
 import warpvol as wv
+from warpvol import device as dev
+from warpvol.physics.brdf import Material
+from warpvol.physics.sphere import fibonacci_directions
+from warpvol.scattering import Lattice, Spacing, reflected_field
+
+dev.kernel_module(__name__)  # this file's kernels: warpvol's Warp options
 
 MARCHERS = ("raymarch", "light_shafts", "particle_glow", "rbf_propagation")
 
@@ -47,6 +54,41 @@ def test_white_furnace_converges_to_the_sky(device):
     assert float(np.abs(single - 1.0).mean()) > 0.2
     assert errors[1] <= 0.6 * errors[0]
     assert errors[1] < 0.04
+
+
+@wp.kernel
+def read_reflected(field: wp.array(dtype=wp.vec3), lat: Lattice, mat: Material, p: wp.array(dtype=wp.vec3),
+                   n: wp.vec3, out: wp.array(dtype=wp.vec3)):
+    i = wp.tid()
+    out[i] = reflected_field(field, lat, mat, p[i], n, n)
+
+
+def test_a_surface_reads_the_field_in_front_of_it(device):
+    """A white wall x = c (normal +x) anywhere inside a lattice's cells, the field 1 at the nodes in
+    front of it and 0 behind (where a solid's inside or a wall's far side leaves no field that
+    arrives here): the wall reflects exactly what it reflects of a field 1 everywhere. A plain
+    trilinear read would blend in the zeros by the weight of the nodes behind the wall."""
+    n, D = 6, 32
+    lat = Lattice()
+    lat.n, lat.lo, lat.hi, lat.graded = n, wp.vec3(0.0), wp.vec3(1.0), 0
+    lat.spacing = Spacing()
+    lat.directions = wp.array(fibonacci_directions(D).astype(np.float32), dtype=wp.vec3, device=device)
+    mat = Material()
+    mat.diffuse, mat.specular, mat.shininess = wp.vec3(1.0), 0.0, 1.0
+    rng = np.random.default_rng(3)
+    c = 0.37  # between nodes 1 (0.2) and 2 (0.4)
+    p = np.column_stack([np.full(20, c), rng.uniform(0.05, 0.95, (20, 2))]).astype(np.float32)
+    x = np.arange(n) / (n - 1)
+    front = np.broadcast_to((x >= c)[None, None, :, None], (n, n, n, D)).astype(np.float32)  # z, y, x, d
+    out = {}
+    for name, values in (("front", front), ("everywhere", np.ones_like(front))):
+        field = wp.array(np.repeat(values.reshape(-1, 1), 3, axis=1), dtype=wp.vec3, device=device)
+        res = wp.zeros(len(p), dtype=wp.vec3, device=device)
+        wp.launch(read_reflected, dim=len(p), inputs=[field, lat, mat, wp.array(p, dtype=wp.vec3, device=device),
+                  wp.vec3(1.0, 0.0, 0.0), res], device=device)
+        out[name] = res.numpy()
+    assert np.all(out["everywhere"] > 0.8)
+    np.testing.assert_allclose(out["front"], out["everywhere"], rtol=1e-5)
 
 
 @pytest.mark.parametrize("technique", MARCHERS)

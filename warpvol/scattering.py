@@ -216,19 +216,60 @@ def inside_margin(lo: wp.vec3, hi: wp.vec3, margin: float, p: wp.vec3) -> bool:
 
 
 @wp.func
+def corner_weight(lat: Lattice, q: int, w: float, p: wp.vec3, n: wp.vec3) -> float:
+    """A trilinear weight w of node q, or 0 where the node lies behind the plane through p
+    with normal n."""
+    return wp.where(wp.dot(node_position(lat, q) - p, n) >= 0.0, w, 0.0)
+
+
+@wp.func
 def reflected_field(field: wp.array(dtype=wp.vec3), lat: Lattice, mat: Material, p: wp.vec3, n: wp.vec3,
                     wo: wp.vec3) -> wp.vec3:
     """sum_d f(wo, -w_d) cos L(p, w_d) 4 pi / D over the directions arriving from above the
-    surface (normal n facing wo): what it reflects toward wo of a lattice's radiance field."""
+    surface (normal n facing wo): what it reflects toward wo of a lattice's radiance field.
+
+    L(p, w_d) is trilinear over the nodes of p's cell in front of the surface's tangent plane
+    (the weights of those behind it, inside a solid or beyond a wall where the field is not the
+    one arriving here, are dropped and the rest renormalised); all eight where none is in front."""
+    N = lat.n
+    g = lattice_coords(lat, p)
+    fx = wp.clamp(g[0], 0.0, float(N - 1))
+    fy = wp.clamp(g[1], 0.0, float(N - 1))
+    fz = wp.clamp(g[2], 0.0, float(N - 1))
+    x0 = wp.min(int(fx), N - 2)
+    y0 = wp.min(int(fy), N - 2)
+    z0 = wp.min(int(fz), N - 2)
+    tx = fx - float(x0)
+    ty = fy - float(y0)
+    tz = fz - float(z0)
+    q = (z0 * N + y0) * N + x0
+    sy = N
+    sz = N * N
+    w0 = wp.vec4(corner_weight(lat, q, (1.0 - tx) * (1.0 - ty) * (1.0 - tz), p, n),
+                 corner_weight(lat, q + 1, tx * (1.0 - ty) * (1.0 - tz), p, n),
+                 corner_weight(lat, q + sy, (1.0 - tx) * ty * (1.0 - tz), p, n),
+                 corner_weight(lat, q + sy + 1, tx * ty * (1.0 - tz), p, n))
+    w1 = wp.vec4(corner_weight(lat, q + sz, (1.0 - tx) * (1.0 - ty) * tz, p, n),
+                 corner_weight(lat, q + sz + 1, tx * (1.0 - ty) * tz, p, n),
+                 corner_weight(lat, q + sz + sy, (1.0 - tx) * ty * tz, p, n),
+                 corner_weight(lat, q + sz + sy + 1, tx * ty * tz, p, n))
+    total = w0[0] + w0[1] + w0[2] + w0[3] + w1[0] + w1[1] + w1[2] + w1[3]
+    if total <= 1.0e-6:  # no node in front: the plain trilinear weights
+        w0 = wp.vec4((1.0 - tx) * (1.0 - ty) * (1.0 - tz), tx * (1.0 - ty) * (1.0 - tz),
+                     (1.0 - tx) * ty * (1.0 - tz), tx * ty * (1.0 - tz))
+        w1 = wp.vec4((1.0 - tx) * (1.0 - ty) * tz, tx * (1.0 - ty) * tz, (1.0 - tx) * ty * tz, tx * ty * tz)
+        total = 1.0
     out = wp.vec3(0.0)
     D = lat.directions.shape[0]
-    dw = 4.0 * PI / float(D)
-    g = lattice_coords(lat, p)
+    dw = 4.0 * PI / (float(D) * total)
     for d in range(D):
         wi = -lat.directions[d]
         c = wp.dot(n, wi)
         if c > 0.0:
-            L = lattice_at_vec3(field, d, D, lat.n, g)
+            L = (field[q * D + d] * w0[0] + field[(q + 1) * D + d] * w0[1] + field[(q + sy) * D + d] * w0[2] +
+                 field[(q + sy + 1) * D + d] * w0[3] + field[(q + sz) * D + d] * w1[0] +
+                 field[(q + sz + 1) * D + d] * w1[1] + field[(q + sz + sy) * D + d] * w1[2] +
+                 field[(q + sz + sy + 1) * D + d] * w1[3])
             out += reflected(mat, n, wo, wi, c, L * dw, wp.vec3(1.0))
     return out
 

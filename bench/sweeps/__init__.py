@@ -2,14 +2,18 @@
 sweeps (error against the reference vs time) and the pipeline's own overhead. ``SWEEPS`` is the
 registry, by name, in the order ``python -m warpvol bench --list`` shows."""
 
-from . import (depth_impostors, front, illumination_network, light_shafts, multiple, particle_glow, raymarch, rbf_propagation,
-               reference)
+from . import (census, depth_impostors, front, illumination_network, light_shafts, multiple, particle_glow, raymarch,
+               rbf_propagation, reference)
 from .common import PAPER_TABLES, Sweep, row_fps  # noqa: F401  (PAPER_TABLES: the papers' numbers, for scripts)
 from .illumination_network import network_scene  # noqa: F401  (bench/test_kernels.py)
 from .light_shafts import shafts_scene  # noqa: F401
 from .reference import cumulus_scene  # noqa: F401
 
 SWEEPS: dict[str, Sweep] = {s.name: s for s in [
+    Sweep("defaults", "the census: every built-in scene with every technique that takes it, at its defaults, at the "
+          "scene's own resolution and at 160x120: time per frame and per stage, each over the reference's at 16 spp, "
+          "and at 160x120 the error against the physical answer (the reference, all orders of scattering)",
+          "reference", "census", census.census_grid, census.census, note=census.CENSUS_NOTE),
     Sweep("depth-impostors", "Umenhoffer & Szirmay-Kalos 2005 figure 5: 8000 particles under one directional light, no blocks and 1600, "
           "800, 400, 40, 20 blocks; a frame of an animated cloud under a moving light at 512x512",
           "depth_impostors", "paper", depth_impostors.impostor_fig5_grid, depth_impostors.impostor_frame, paper=("depth_impostors",),

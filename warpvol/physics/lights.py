@@ -125,6 +125,69 @@ def segment_mean_inverse_square(o: wp.vec3, d: wp.vec3, t0: float, t1: float, p:
 
 
 
+#: Beside a point or spot light a march step is split into equal angles at the light of at most
+#: ANGLE_STEP radians (``step_angle``), up to MAX_ANGLE_SAMPLES of them.
+ANGLE_STEP = wp.constant(0.1)
+MAX_ANGLE_SAMPLES = wp.constant(32)
+
+
+@wp.func
+def step_angle(light: Emitter, o: wp.vec3, d: wp.vec3, t0: float, t1: float):
+    """Returns (tc, h, phi): the closest approach tc of the ray o + t d (d unit) to a point or
+    spot light, its distance h (kept above 1e-6 (t1 - t0)), and the angle phi that the step
+    [t0, t1] subtends at the light, atan2((t1 - t0) h, h^2 + (t0 - tc)(t1 - tc)) (the difference
+    of the two atans without their cancellation). Directional lights: phi = 0."""
+    if light.kind == DIRECTIONAL:
+        return 0.0, 1.0, 0.0
+    rel = light.position - o
+    tc = wp.dot(rel, d)
+    h = wp.max(wp.sqrt(wp.max(wp.dot(rel, rel) - tc * tc, 0.0)), 1.0e-6 * (t1 - t0))
+    return tc, h, wp.atan2((t1 - t0) * h, h * h + (t0 - tc) * (t1 - tc))
+
+
+@wp.func
+def angle_samples(phi: float) -> int:
+    """How many points a march step that subtends ``phi`` at a light is split into."""
+    return wp.clamp(int(wp.ceil(phi / ANGLE_STEP)), 1, MAX_ANGLE_SAMPLES)
+
+
+@wp.func
+def angle_point(t0: float, tc: float, h: float, phi: float, j: int, n: int) -> float:
+    """The ray parameter of the middle of the j-th of n equal angles into which the step from
+    t0 (``step_angle``: tc, h, phi) is split at the light: tc + h tan(phi_0 + (j + 1/2) phi / n),
+    by the tangent's addition rule (h tan phi_0 = t0 - tc). Along t, 1/d^2 dt = dphi / h, so
+    the points are equiangular (Kulla & Fajardo 2012) and each carries an equal share of the
+    light's 1/d^2 (``angle_share``): a step beside the light no longer takes the phase function,
+    the shadow and the light's falloff at one point."""
+    tau = wp.tan((float(j) + 0.5) * phi / float(n))
+    a = t0 - tc
+    return tc + h * (a + h * tau) / (h - a * tau)
+
+
+@wp.func
+def angle_share(light: Emitter, e: wp.vec3, dist: float, h: float, phi: float, n: int, dt: float) -> wp.vec3:
+    """The irradiance ``e`` at one of n equiangular points (``angle_point``), distance ``dist``
+    from the light, given its share of the step's mean: e d^2 (phi / n) / (h dt), so the n
+    shares sum to the step mean of ``step_mean_irradiance`` where e d^2 is constant."""
+    e_d2 = wp.where(dist > 1.0e-10, e * (dist * dist), light.strength)
+    return e_d2 * (phi / (float(n) * h * dt))
+
+
+@wp.func
+def ball_chord(light: Emitter, o: wp.vec3, d: wp.vec3, radius: float) -> wp.vec2:
+    """The ray parameters (a, b) where o + t d (d unit) enters and leaves the ball of ``radius``
+    around a point or spot light; a >= b where it misses (and for directional lights)."""
+    if light.kind == DIRECTIONAL:
+        return wp.vec2(1.0, 0.0)
+    rel = light.position - o
+    tc = wp.dot(rel, d)
+    h2 = wp.dot(rel, rel) - tc * tc
+    if h2 >= radius * radius:
+        return wp.vec2(1.0, 0.0)
+    s = wp.sqrt(radius * radius - h2)
+    return wp.vec2(tc - s, tc + s)
+
+
 @wp.func
 def step_mean_irradiance(light: Emitter, e: wp.vec3, dist: float, o: wp.vec3, d: wp.vec3, t0: float, t1: float):
     """The irradiance ``e`` that ``light`` delivers at a point of the march step o + t d,

@@ -51,6 +51,14 @@ Where this departs from the paper, and why:
   (``physics.lights.step_mean_irradiance``, as raymarch does): N samples over a long ray
   beside a lamp otherwise miss or alias its peak (point-in-fog at 80x60, M = 4: 0.53 off its
   converged image before, against 2048 steps per pixel).
+* Beside a point or spot light the in-scattering peaks like 1/h across the rays (h a ray's
+  distance from the light), so neighbours' samples do not stand in for a pixel's own. Inside
+  a ball around each such light (``light_ball`` = 4: a radius of four M x M blocks of pixels
+  at the light's distance) every pixel marches its own ray at equiangular points (at most
+  0.1 rad apart as seen from the light; Kulla & Fajardo 2012) and adds it after the block sum;
+  the shared samples cover the rest of the ray. fog-box at 64x48 against the all-orders
+  reference: 1.55 off before (the light's pixel a tenth of its value), 0.22 after.
+  ``light_ball`` = 0 is the paper's sharing throughout.
 
 At depth discontinuities the block sum adds samples of neighbouring rays of other
 lengths: a pixel on a near column next to the far wall borrows the wall pixels' longer
@@ -71,6 +79,8 @@ stages ``multiple`` and ``multiple_view``) and read at each of a pixel's interle
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import warp as wp
@@ -98,7 +108,8 @@ from ..geometry.shadowmap import (
 )
 from ..media.volume import Media, homogeneous_optical_depth, in_scatter_at, scattering_at, sigma_t_at
 from ..physics.constants import INF, RAY_EPS
-from ..physics.lights import step_mean_irradiance
+from ..physics.lights import (angle_point, angle_samples, angle_share, ball_chord, step_angle,
+                              step_mean_irradiance)
 from ..physics.transmittance import transmittance_rgb
 from ..pipeline import Bias, Quality, Setting, Stage, Technique
 from ..scattering import BIASES as MS_BIASES
@@ -130,6 +141,10 @@ SETTINGS = {
                      "leaves out (no halo at depth jumps; at 800x600, M = 4: a fifth of the error there for 8% more "
                      "time, results/light-shafts-edges); 0: the paper's plain separable sum"),
     "edge_tolerance": Setting(0.1, 0.0, 10.0, "edges = 1: relative depth difference beyond which a neighbour is left out"),
+    "light_ball": Setting(4.0, 0.0, 64.0, "radius, in M-pixel blocks at the light's distance, of the ball around each "
+                          "point or spot light inside which every pixel marches its own ray at equiangular points "
+                          "instead of sharing the block's samples (the light's peak stays in its pixel); 0: the "
+                          "paper's shared samples throughout"),
     **MS_SETTINGS,
     **EXTINCTION_SETTINGS,
 }
@@ -145,6 +160,7 @@ class ShaftSettings:
     seed: int
     spacing: int
     has_depth: int  # 0 when the scene has no surfaces (depth pass skipped)
+    near: float  # a point or spot light's ball, marched per pixel: its radius per unit distance from the camera
 
 
 @wp.struct
@@ -210,13 +226,50 @@ def shade_visible_surface(offset: int, cam: RasterView, m: Media, s: Surfaces, s
     radiance[tid] = L
 
 
+@wp.func
+def outside_ball(c0: float, w: float, chord: wp.vec2) -> float:
+    """The length of the sample cell [c0, c0 + w] outside a light's ball (``ball_chord``)."""
+    return w - wp.max(wp.min(c0 + w, chord[1]) - wp.max(c0, chord[0]), 0.0)
+
+
+@wp.func
+def near_light(m: Media, sl: ShadowedLights, l: int, o: wp.vec3, d: wp.vec3, ta: float, tb: float,
+               chord: wp.vec2, shadow_steps: int, view_steps: int) -> wp.vec3:
+    """The in-scattered light of point or spot light l over the part of the view ray [ta, tb]
+    inside the light's ball (``chord``), at equiangular points (``physics.lights.angle_point``,
+    at most 0.1 rad apart as seen from the light), per pixel: the light's singular peak, which
+    the block sum of interleaved samples would spread over M x M pixels."""
+    a = wp.max(ta, chord[0])
+    b = wp.min(tb, chord[1])
+    acc = wp.vec3(0.0)
+    if a >= b:
+        return acc
+    light = sl.lights[l]
+    tc, h, phi = step_angle(light, o, d, a, b)
+    n = angle_samples(phi)
+    for j in range(n):
+        t = wp.where(n > 1, angle_point(a, tc, h, phi, j, n), 0.5 * (a + b))
+        x = o + t * d
+        wi, e, tau = light_arriving(m, sl, l, x, wp.vec3(0.0), shadow_steps)
+        if e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0:
+            if n > 1:
+                e = angle_share(light, e, wp.length(light.position - x), h, phi, n, 1.0)
+            else:
+                e = step_mean_irradiance(light, e, wp.length(light.position - x), o, d, a, b) * (b - a)
+            tau_v = marched_optical_depth(m, o, d, 0.0, t, view_steps)
+            acc += wp.cw_mul(transmittance_rgb(tau_v + tau), wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e))
+    return acc
+
+
 @wp.kernel
 def march_shafts(offset: int, cam: RasterView, m: Media, sl: ShadowedLights, segs: wp.array(dtype=wp.vec3),
                  background: wp.vec3, st: ShaftSettings, ms: ScatteredLight, surface_out: wp.array(dtype=wp.vec3),
-                 partial_out: wp.array(dtype=wp.vec3)):
-    """This pixel's share of the in-scattering sum (its samples k = k0, k0 + M^2, ...). With
-    surfaces, the surface term was attenuated by the surface pass; without, the background is
-    attenuated here into ``surface_out``."""
+                 partial_out: wp.array(dtype=wp.vec3), own_out: wp.array(dtype=wp.vec3)):
+    """This pixel's share of the in-scattering sum (its samples k = k0, k0 + M^2, ...), and into
+    ``own_out`` what it takes from no neighbour: each point or spot light's in-scattering inside
+    the light's ball (``near_light``; the shared samples skip it). With surfaces, the surface
+    term was attenuated by the surface pass; without, the background is attenuated here into
+    ``surface_out``."""
     tid = wp.tid() + offset
     px = tid % cam.width
     py = tid / cam.width
@@ -228,7 +281,11 @@ def march_shafts(offset: int, cam: RasterView, m: Media, sl: ShadowedLights, seg
     if st.has_depth == 0:
         surface_out[tid] = wp.cw_mul(background, transmittance_rgb(marched_optical_depth(m, o, d, 0.0, b, st.steps)))
     acc = wp.vec3(0.0)
+    own = wp.vec3(0.0)
     if ta < tb and st.scattering == 1:
+        for l in range(sl.lights.shape[0]):
+            chord = ball_chord(sl.lights[l], o, d, st.near * wp.length(sl.lights[l].position - o))
+            own += near_light(m, sl, l, o, d, ta, tb, chord, st.shadow_steps, st.steps)
         t_end = tb  # where the samples are spread: up to the surface (paper) or through the media
         if st.spacing == 1:
             t_end = b
@@ -251,12 +308,15 @@ def march_shafts(offset: int, cam: RasterView, m: Media, sl: ShadowedLights, seg
                 x = o + lk * d
                 tau_v = homogeneous_optical_depth(m, o, d, 0.0, lk)
                 for l in range(sl.lights.shape[0]):
-                    wi, e, tau = light_arriving(m, sl, l, x, wp.vec3(0.0), st.shadow_steps)
-                    if e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0:
-                        e = step_mean_irradiance(sl.lights[l], e, wp.length(sl.lights[l].position - x), o, d, c0,
-                                                 c0 + w)  # a point light's 1/d^2 averaged over the cell
-                        li = wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e)
-                        acc += wp.cw_mul(transmittance_rgb(tau_v + tau), li) * w
+                    chord = ball_chord(sl.lights[l], o, d, st.near * wp.length(sl.lights[l].position - o))
+                    w_l = outside_ball(c0, w, chord)  # the ball is the pixel's own (near_light)
+                    if w_l > 0.0:
+                        wi, e, tau = light_arriving(m, sl, l, x, wp.vec3(0.0), st.shadow_steps)
+                        if e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0:
+                            e = step_mean_irradiance(sl.lights[l], e, wp.length(sl.lights[l].position - x), o, d,
+                                                     c0, c0 + w)  # a point light's 1/d^2 averaged over the cell
+                            li = wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e)
+                            acc += wp.cw_mul(transmittance_rgb(tau_v + tau), li) * w_l
                 if ms.lat.n > 0:
                     acc += wp.cw_mul(transmittance_rgb(tau_v), scattered_light(ms, scattering_at(m, x), x)) * w
         else:
@@ -273,16 +333,20 @@ def march_shafts(offset: int, cam: RasterView, m: Media, sl: ShadowedLights, seg
                 if k % stride == k0:
                     tau_v = tau + homogeneous_optical_depth(m, o, d, ta, lk) + sig * (u * w)
                     for l in range(sl.lights.shape[0]):
-                        wi, e, tau_l = light_arriving(m, sl, l, x, wp.vec3(0.0), st.shadow_steps)
-                        if e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0:
-                            e = step_mean_irradiance(sl.lights[l], e, wp.length(sl.lights[l].position - x), o, d,
-                                                     c0, c0 + w)
-                            li = wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e)
-                            acc += wp.cw_mul(transmittance_rgb(tau_v + tau_l), li) * w
+                        chord = ball_chord(sl.lights[l], o, d, st.near * wp.length(sl.lights[l].position - o))
+                        w_l = outside_ball(c0, w, chord)
+                        if w_l > 0.0:
+                            wi, e, tau_l = light_arriving(m, sl, l, x, wp.vec3(0.0), st.shadow_steps)
+                            if e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0:
+                                e = step_mean_irradiance(sl.lights[l], e, wp.length(sl.lights[l].position - x), o,
+                                                         d, c0, c0 + w)
+                                li = wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e)
+                                acc += wp.cw_mul(transmittance_rgb(tau_v + tau_l), li) * w_l
                     if ms.lat.n > 0:
                         acc += wp.cw_mul(transmittance_rgb(tau_v), scattered_light(ms, scattering_at(m, x), x)) * w
                 tau += sig * w
     partial_out[tid] = acc
+    own_out[tid] = own
 
 
 @wp.kernel
@@ -300,14 +364,15 @@ def block_sum_rows(offset: int, values: wp.array(dtype=wp.vec3), width: int, blo
 
 
 @wp.kernel
-def block_sum_cols(offset: int, rows: wp.array(dtype=wp.vec3), surface: wp.array(dtype=wp.vec3), width: int,
-                   height: int, block: int, image: wp.array(dtype=wp.vec3)):
-    """Column-wise sum of the row sums (the M x M block sum), plus the pixel's surface term."""
+def block_sum_cols(offset: int, rows: wp.array(dtype=wp.vec3), surface: wp.array(dtype=wp.vec3),
+                   own: wp.array(dtype=wp.vec3), width: int, height: int, block: int, image: wp.array(dtype=wp.vec3)):
+    """Column-wise sum of the row sums (the M x M block sum), plus the pixel's surface term and
+    its own in-scattering (the lights' balls)."""
     tid = wp.tid() + offset
     px = tid % width
     py = tid / width
     y0 = wp.clamp(py - block / 2, 0, wp.max(height - block, 0))
-    acc = surface[tid]
+    acc = surface[tid] + own[tid]
     for k in range(block):
         acc += rows[(y0 + k) * width + px]
     image[tid] = acc
@@ -315,7 +380,7 @@ def block_sum_cols(offset: int, rows: wp.array(dtype=wp.vec3), surface: wp.array
 
 @wp.kernel
 def block_sum_depth_aware(offset: int, values: wp.array(dtype=wp.vec3), surface: wp.array(dtype=wp.vec3),
-                          t_hit: wp.array(dtype=float), width: int, height: int, block: int, tolerance: float,
+                          own: wp.array(dtype=wp.vec3), t_hit: wp.array(dtype=float), width: int, height: int, block: int, tolerance: float,
                           image: wp.array(dtype=wp.vec3)):
     """The M x M block sum over the neighbours whose visible surface lies within ``tolerance``
     (relative) of this pixel's, scaled by M^2 / (neighbours kept): the samples of the residue
@@ -340,13 +405,14 @@ def block_sum_depth_aware(offset: int, values: wp.array(dtype=wp.vec3), surface:
             if same:
                 acc += values[row + i]
                 kept += 1
-    image[tid] = surface[tid] + acc * (float(block * block) / float(wp.max(kept, 1)))
+    image[tid] = surface[tid] + own[tid] + acc * (float(block * block) / float(wp.max(kept, 1)))
 
 
 @wp.kernel
-def add_images(offset: int, a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), out: wp.array(dtype=wp.vec3)):
+def add_images(offset: int, a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), c: wp.array(dtype=wp.vec3),
+               out: wp.array(dtype=wp.vec3)):
     tid = wp.tid() + offset
-    out[tid] = a[tid] + b[tid]
+    out[tid] = a[tid] + b[tid] + c[tid]
 
 
 @wp.kernel
@@ -396,7 +462,7 @@ class LightShafts(Technique):
         self._arrays = {}
         self._raster_source = self._raster_mesh = None
         self.t_hit = self.radiance = None
-        self.surface = self.partial = self.rows = self.image = None
+        self.surface = self.partial = self.own = self.rows = self.image = None
 
     def check_settings(self, settings):
         check_ms_settings(NAME, settings)
@@ -429,7 +495,7 @@ class LightShafts(Technique):
                   after=("medium", "surfaces", "lights", "shadow_maps", "visible", "multiple_view"), needed=occluders),
             Stage("march", self._march, reads=("camera", "background"),
                   settings=("steps", "block", "jitter", "scattering", "shadow_steps", "seed", "spacing",
-                            "multiple_scattering"),
+                            "multiple_scattering", "light_ball"),
                   after=("medium", "lights", "shadow_maps", "visible", "surface", "multiple_view")),
             Stage("block_rows", self._block_rows, settings=("block",), after=("march",),
                   needed=interleaved and not depth_aware),
@@ -543,13 +609,16 @@ class LightShafts(Technique):
         st.scattering, st.shadow_steps, st.seed = cfg["scattering"], cfg["shadow_steps"], cfg["seed"]
         st.spacing = cfg["spacing"]
         st.has_depth = int(has_depth)
+        pixel = 2.0 * math.tan(math.radians(cam.fov_y) / 2.0) / cam.height  # a pixel's width per unit distance
+        st.near = cfg["light_ball"] * st.block * pixel
         self.partial = self._scratch("partial", npix, wp.vec3)
+        self.own = self._scratch("own", npix, wp.vec3)
         dev.launch(march_shafts, npix, [camera_view(pinhole(cam)), u.media.struct, self._shadowed_lights(), self.segs,
                                         wp.vec3(*scene.background), st, self.multiple.struct(), self.surface,
-                                        self.partial], self.device)
+                                        self.partial, self.own], self.device)
         if st.block == 1 or not cfg["scattering"] or not scene.media:
             self.image = wp.empty(npix, dtype=wp.vec3, device=self.device)  # the frame's own: not reused
-            dev.launch(add_images, npix, [self.surface, self.partial, self.image], self.device)
+            dev.launch(add_images, npix, [self.surface, self.partial, self.own, self.image], self.device)
 
     def _block_rows(self):
         cam = self.scene.camera
@@ -560,14 +629,14 @@ class LightShafts(Technique):
     def _block_cols(self):
         cam = self.scene.camera
         self.image = wp.empty(cam.width * cam.height, dtype=wp.vec3, device=self.device)
-        dev.launch(block_sum_cols, cam.width * cam.height, [self.rows, self.surface, cam.width, cam.height,
+        dev.launch(block_sum_cols, cam.width * cam.height, [self.rows, self.surface, self.own, cam.width, cam.height,
                                                             self.effective_block(), self.image], self.device)
 
     def _block_edges(self):
         cam = self.scene.camera
         self.image = wp.empty(cam.width * cam.height, dtype=wp.vec3, device=self.device)
         dev.launch(block_sum_depth_aware, cam.width * cam.height,
-                   [self.partial, self.surface, self.t_hit, cam.width, cam.height, self.effective_block(),
+                   [self.partial, self.surface, self.own, self.t_hit, cam.width, cam.height, self.effective_block(),
                     self.settings["edge_tolerance"], self.image], self.device)
 
     def output(self):

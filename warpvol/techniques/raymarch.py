@@ -7,8 +7,12 @@ T S (1 - exp(-sigma_t dt)) / sigma_t, the exact integral over a step of constant
 coefficients (Hillaire 2015), so thin and thick steps both conserve energy. Light reaches
 a point through the media (in closed form where one exists: homogeneous shapes, particles
 and RBFs, one walk along the ray; grids marched with ``shadow_steps`` midpoint steps) and
-past surfaces (a shadow ray). Surfaces are lit
-directly. The sky (the background radiance) is a light
+past surfaces (a shadow ray). A point or spot light's 1/d^2 is averaged over each step in
+closed form, and a step that subtends more than 0.1 rad at the light (beside it) is split into
+equal angles seen from the light (equiangular points, Kulla & Fajardo 2012), each with its own
+phase function, shadow and falloff: a coarse march no longer misses the light's peak (fog-box's
+single scattering at 128 steps: 0.22 off the reference before, 0.04 after, at its noise).
+Surfaces are lit directly. The sky (the background radiance) is a light
 too: its single scattering is gathered at every step from ``sky_samples`` directions over
 the sphere (``upload.sky_lights``), sum_k sigma_s p_k T_k / sum_k sigma_s p_k times
 sigma_s L_sky, and on surfaces as pi f L_sky sum_k cos_k T_k / sum_k cos_k; both exact where
@@ -47,7 +51,8 @@ from ..geometry.raster import RasterView, view_ray
 from ..media.grid import lattice_trilinear_vec3
 from ..media.volume import Media, in_scatter_at, scattering_at, sigma_t_at
 from ..physics.constants import INF, RAY_EPS
-from ..physics.lights import Emitter, light_incident, step_mean_irradiance
+from ..physics.lights import (Emitter, angle_point, angle_samples, angle_share, light_incident, step_angle,
+                              step_mean_irradiance)
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Bias, Quality, Setting, SettingsError, Stage, Technique
 from ..scattering import BIASES as MS_BIASES
@@ -190,12 +195,22 @@ def march_single_scattering(offset: int, cam: RasterView, m: Media, s: Surfaces,
             if sig[0] > 0.0 or sig[1] > 0.0 or sig[2] > 0.0:
                 inscatter = wp.vec3(0.0)
                 t_mid = ta + (float(k) + 0.5) * dt
+                t0 = t_mid - 0.5 * dt
                 for l in range(lights.shape[0]):
-                    wi, dist, e = light_incident(lights[l], x)
-                    if dist > 0.0:
-                        e = step_mean_irradiance(lights[l], e, dist, o, d, t_mid - 0.5 * dt, t_mid + 0.5 * dt)
-                        tl = light_at(m, s, l, x, wi, dist, st, baked, st.shadow_steps)
-                        inscatter += wp.cw_mul(wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e), tl)
+                    tc, h, phi = step_angle(lights[l], o, d, t0, t0 + dt)
+                    na = angle_samples(phi)  # 1 but beside a point or spot light
+                    for j in range(na):
+                        xj = x
+                        if na > 1:
+                            xj = o + angle_point(t0, tc, h, phi, j, na) * d
+                        wi, dist, e = light_incident(lights[l], xj)
+                        if dist > 0.0:
+                            if na == 1:
+                                e = step_mean_irradiance(lights[l], e, dist, o, d, t0, t0 + dt)
+                            else:
+                                e = angle_share(lights[l], e, dist, h, phi, na, dt)
+                            tl = light_at(m, s, l, xj, wi, dist, st, baked, st.shadow_steps)
+                            inscatter += wp.cw_mul(wp.cw_mul(in_scatter_at(m, xj, wp.dot(d, wi)), e), tl)
                 if sky.directions.shape[0] > 0:
                     inscatter += sky_in_scatter(m, s, sky, x, d, st, baked)
                 if ms.lat.n > 0:
