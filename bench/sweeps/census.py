@@ -9,7 +9,6 @@ import time
 
 import warpvol as wv
 from warpvol.scene import BUILTIN
-from warpvol.techniques import TECHNIQUES
 
 from ..harness import time_frames
 from .common import score
@@ -42,7 +41,7 @@ def census_grid(quick: bool) -> list[dict]:
     for name in names:
         own = census_scene(name, None).camera
         sizes = [(16, 12)] if quick else list(dict.fromkeys([(own.width, own.height), CENSUS_SIZE]))
-        for technique in TECHNIQUES:
+        for technique in wv.technique_names():
             try:
                 wv.Renderer(census_scene(name, CENSUS_SIZE), technique=technique, device="cpu")
             except (wv.SettingsError, ValueError):
