@@ -30,6 +30,11 @@ def _params(row) -> str:
     return ", ".join(f"{k}={v}" for k, v in row["params"].items())
 
 
+def _flip(row) -> str:
+    """A row's mean HDR-FLIP against its reference (``metrics.hdr_flip``), or a dash."""
+    return f"{row['hdr_flip']:.3f}" if row.get("hdr_flip") is not None else "–"
+
+
 def _stages(row) -> str:
     return ", ".join(f"{n} {s['median_ms']:.2f}" for n, s in row["stages"].items() if s["status"] == "ran")
 
@@ -392,8 +397,8 @@ def _front_plot_and_table(rows: list[dict], png: Path) -> list[str]:
     cols = min(2, len(families))
     fig, axes = plt.subplots(-(-len(families) // cols), cols, figsize=(6.0 * cols, 4.2 * -(-len(families) // cols)),
                              squeeze=False)
-    lines = ["| family | technique | quality | ms / frame | relative RMSE (noise removed) | image mean ÷ reference | "
-             "leaves out |", "|---|---|---|---|---|---|---|"]
+    lines = ["| family | technique | quality | ms / frame | relative RMSE (noise removed) | ꟻLIP | image mean ÷ reference | "
+             "leaves out |", "|---|---|---|---|---|---|---|---|"]
     for ax, family in zip(axes.flat, families):
         rs = [r for r in rows if r["params"]["family"] == family]
         for technique in dict.fromkeys(r["params"]["technique"] for r in rs):
@@ -411,7 +416,8 @@ def _front_plot_and_table(rows: list[dict], png: Path) -> list[str]:
         for r in rs:
             q = ", ".join(f"{k}={v}" for k, v in r["params"].items() if k not in ("family", "technique"))
             lines.append(f"| {family} | {r['params']['technique']} | {q} | {r['median_ms']:.1f} | "
-                         f"{r['rel_rmse_corrected']:.4f} | {r['mean_ratio']:.3f} | {'; '.join(r['leaves_out']) or '–'} |")
+                         f"{r['rel_rmse_corrected']:.4f} | {_flip(r)} | {r['mean_ratio']:.3f} | "
+                         f"{'; '.join(r['leaves_out']) or '–'} |")
     for ax in list(axes.flat)[len(families):]:
         ax.axis("off")
     fig.tight_layout()
@@ -483,8 +489,8 @@ def census_section(rows: list[dict], png: Path) -> list[str]:
         p = r["params"]
         by.setdefault((p["scene"], p["technique"]), {})[(p["width"], p["height"])] = r
     lines = ["| scene | technique | own size: ms / frame (÷ reference) | 160x120: ms / frame (÷ reference) | "
-             "costliest stage at 160x120 | error | mean ÷ truth | truth: spp, noise | leaves out |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "costliest stage at 160x120 | relative RMSE | ꟻLIP | mean ÷ truth | truth: spp, noise | leaves out |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     over = []
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7.0, 4.6))
@@ -524,8 +530,9 @@ def census_section(rows: list[dict], png: Path) -> list[str]:
         leaves = "; ".join("multiple scattering, indirect light: approximated (lattice)"
                            if x.startswith("approximated, not left out") else x
                            for x in (small["leaves_out"] if small is not None else [])) or "–"
-        lines.append(f"| {scene} | {technique} | {cells[0]} | {cells[1]} | {stage} | {err} | {mean} | {truth} | "
-                     f"{leaves} |")
+        flip = _flip(small) if small is not None else "–"
+        lines.append(f"| {scene} | {technique} | {cells[0]} | {cells[1]} | {stage} | {err} | {flip} | {mean} | "
+                     f"{truth} | {leaves} |")
     ax.axvline(1.0, color="grey", lw=0.8, ls="--")
     ax.set(xscale="log", yscale="log", xlabel="frame time ÷ the reference's at 16 spp (160x120)",
            ylabel="relative RMSE vs the physical answer", title="every built-in scene, each technique at its defaults")

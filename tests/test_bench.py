@@ -3,6 +3,8 @@ an interrupted sweep resumes, and reports are generated from the JSON."""
 
 import json
 
+import numpy as np
+
 import pytest
 
 import warpvol as wv
@@ -97,3 +99,22 @@ def test_the_census_covers_every_built_in_scene_at_both_sizes():
             assert {(p["width"], p["height"]) for p in rows if p["technique"] == t} == sizes
             assert sum(p["technique"] == t for p in rows) == len(sizes)
         assert all(p["spp"] == 16 for p in rows if p["technique"] == "reference")
+
+
+def test_hdr_flip_weighs_what_is_visible():
+    """The second error measure (metrics.hdr_flip): 0 for identical images, free of exposure
+    (both images scaled by 1000: the same score to float rounding), and unlike RMSE / mean not
+    decided by a light's core: a core 100x the scene's radiance, 30% too bright in one pixel,
+    is most of the RMSE and almost none of the FLIP, while the same scene with a 30% darker
+    wall (a quarter of the pixels) scores the other way round."""
+    rng = np.random.default_rng(0)
+    ref = (0.2 + 0.05 * rng.random((48, 64, 3))).astype(np.float32)
+    ref[20, 30] = 100.0  # the light's core
+    core = ref.copy()
+    core[20, 30] *= 1.3
+    wall = ref.copy()
+    wall[:, :16] *= 0.7
+    assert wv.hdr_flip(ref, ref) == 0.0
+    assert wv.hdr_flip(1000.0 * wall, 1000.0 * ref) == pytest.approx(wv.hdr_flip(wall, ref), rel=1e-3)
+    assert wv.relative_rmse(core, ref) > wv.relative_rmse(wall, ref)
+    assert wv.hdr_flip(core, ref) < 0.2 * wv.hdr_flip(wall, ref)

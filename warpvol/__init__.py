@@ -16,11 +16,11 @@ from .animation import Animation, animate, save_animation  # noqa: E402
 from .api import Renderer, render, technique_class, technique_names  # noqa: E402
 from .image import load_image, save_image  # noqa: E402
 from .media.grid import save_volume  # noqa: E402
-from .metrics import relative_rmse, rmse  # noqa: E402
+from .metrics import hdr_flip, relative_rmse, rmse  # noqa: E402
 from .pipeline import Frame, SettingsError  # noqa: E402
 from .scene import Scene, SceneError, load_scene  # noqa: E402
 from .upload import extinction_volume  # noqa: E402
 
 __version__ = "0.1.0"
 
-__all__ = ["Animation", "Frame", "Renderer", "animate", "save_animation", "Scene", "SceneError", "SettingsError", "extinction_volume", "load_image", "load_scene", "relative_rmse", "render", "rmse", "save_image", "save_volume", "technique_class", "technique_names"]
+__all__ = ["Animation", "Frame", "Renderer", "animate", "save_animation", "Scene", "SceneError", "SettingsError", "extinction_volume", "hdr_flip", "load_image", "load_scene", "relative_rmse", "render", "rmse", "save_image", "save_volume", "technique_class", "technique_names"]

@@ -64,13 +64,14 @@ def row_fps(table: dict, params: dict):
 
 
 def score(row: dict, scene, device: str, spp: int, max_bounces: int = 1, pixel_area: int = 0) -> np.ndarray:
-    """Add to ``row`` the relative RMSE of its frame against the reference at pixel centres
+    """Add to ``row`` the relative RMSE (and HDR-FLIP) of its frame against the reference at pixel centres
     (``max_bounces`` 1: single scattering, what the real-time techniques compute, without
     their error; two seeds of ``spp``), raw and with the reference's own noise removed: that
     noise adds in quadrature, E[err^2 to a noisy ref] = err^2 + floor^2. Returns the reference."""
     ref, floor = reference_image(scene, device, spp=spp, max_bounces=max_bounces, pixel_area=pixel_area)
     row["rel_rmse"] = wv.relative_rmse(row["frame"].image, ref)
     row["rel_rmse_corrected"] = max(row["rel_rmse"] ** 2 - floor**2, 0.0) ** 0.5
+    row["hdr_flip"] = wv.hdr_flip(row["frame"].image, ref)  # the second measure (metrics.hdr_flip)
     row["reference"] = {"spp": 2 * spp, "max_bounces": max_bounces, "pixel_area": pixel_area, "rel_rmse_floor": floor}
     row["scene"] = f"{scene.name} {scene.camera.width}x{scene.camera.height}"
     return ref
