@@ -56,9 +56,8 @@ Where this departs from the paper, and why:
   a ball around each such light (``light_ball`` = 4: a radius of four M x M blocks of pixels
   at the light's distance) every pixel marches its own ray at equiangular points (at most
   0.1 rad apart as seen from the light; Kulla & Fajardo 2012) and adds it after the block sum;
-  the shared samples cover the rest of the ray. fog-box at 64x48 against the all-orders
-  reference: 1.55 off before (the light's pixel a tenth of its value), 0.22 after.
-  ``light_ball`` = 0 is the paper's sharing throughout.
+  the shared samples cover the rest of the ray (the fog-box and light-inside-fog rows of
+  results/multiple-scattering). ``light_ball`` = 0 is the paper's sharing throughout.
 
 At depth discontinuities the block sum adds samples of neighbouring rays of other
 lengths: a pixel on a near column next to the far wall borrows the wall pixels' longer

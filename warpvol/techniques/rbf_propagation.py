@@ -44,8 +44,8 @@ fixed-step ray march that reads both (equations 5, 8-10). Stages:
   OPV (both trilinear), inverse-square falloff and the phase function, integrated exactly
   over each step (beyond the paper: a step that subtends more than 0.1 rad at a point or spot
   light is split into equal angles seen from the light, each with its share of the step's
-  1/d^2, ``physics.lights.angle_point``: fog-box's light pixel was under half its value at the
-  default step, the image 0.98 off the all-orders reference at 64x48, 0.44 after); surfaces shaded with Phong (Lambert + normalised Phong) and attenuated by
+  1/d^2, ``physics.lights.angle_point``: at the default step the pixel nearest the light was
+  under half its value, results/multiple-scattering's fog-box rows); surfaces shaded with Phong (Lambert + normalised Phong) and attenuated by
   both optical depths (equation 10). Surfaces do not occlude lights (as in the paper). A
   surface point outside the volume reads the OPV where its path to the light enters the
   volume (no medium lies outside it), or nothing when that path misses the volume.
