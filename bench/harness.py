@@ -214,6 +214,12 @@ def digest(obj) -> str:
 REFERENCE_VERSION = 5  # 3: single scattering includes the sky's light; 4: the floor in relative_rmse's measure; 5: shadow rays at concave edges
 
 
+def reference_cached(scene, **settings) -> bool:
+    """Whether ``reference_image`` of ``scene`` with these settings is on disk already."""
+    scene = wv.load_scene(scene)
+    return (CACHE / "reference" / f"{scene.name}-{digest([scene, settings, REFERENCE_VERSION])}.npz").exists()
+
+
 def reference_image(scene, device: str, **settings) -> tuple[np.ndarray, float]:
     """The reference rendering of ``scene`` (mean of two seeds) and its own relative RMSE.
 
