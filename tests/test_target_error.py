@@ -90,7 +90,7 @@ def test_measured_error_takes_the_fine_levels_noise_out():
 def test_raymarch_meets_its_target_on_random_scenes(device):
     """12 seeded scenes, target 0.01: the true error (against every setting near its limit: 512
     steps, 256 shadow steps, 256 sky directions; the sky's quadrature converges as 1/n, so the
-    truth keeps an eighth of the bias of the default 32 directions, and the shadow march, order
+    truth keeps a thirty-second of the bias of the default 8 directions, and the shadow march, order
     2, a sixteenth of its error at 64 steps) is at most the target, and the estimate (measured
     against the next level: ``measured_error``) within 2x of the truth, in at least 90% of them."""
     target, met, within, ratios = 0.01, 0, 0, []

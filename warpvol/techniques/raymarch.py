@@ -73,8 +73,9 @@ SETTINGS = {
     "step_length": Setting(0.0, 0.0, 1.0e6, "step length in scene units; 0 = use steps"),
     "shadow_steps": Setting(32, 1, 1 << 20, "steps along each ray toward a light through grid media (the others: closed form)"),
     "shadow_grid": Setting(0, 0, 512, "nodes per axis of the baked light-transmittance volume; 0 = march to the lights"),
-    "sky_samples": Setting(32, 0, 4096, "directions the sky's light (the background) is gathered from at every step "
-                                        "and surface point; 0: leave it out"),
+    "sky_samples": Setting(8, 0, 4096, "directions the sky's light (the background) is gathered from at every step "
+                                       "and surface point (each marched like a light); 0: the multiple-scattering "
+                                       "lattice carries it, or it is left out"),
     **MS_SETTINGS,
     **EXTINCTION_SETTINGS,
 }
