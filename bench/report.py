@@ -489,7 +489,7 @@ def census_section(rows: list[dict], png: Path) -> list[str]:
         p = r["params"]
         by.setdefault((p["scene"], p["technique"]), {})[(p["width"], p["height"])] = r
     lines = ["| scene | technique | own size: ms / frame (÷ reference) | 160x120: ms / frame (÷ reference) | "
-             "costliest stage at 160x120 | relative RMSE | ꟻLIP | mean ÷ truth | truth: spp, noise | leaves out |",
+             "costliest stage at 160x120 | relative RMSE | ꟻLIP | mean ÷ truth | truth: spp (both seeds), noise | leaves out |",
              "|---|---|---|---|---|---|---|---|---|---|"]
     over = []
     plt = _plt()
