@@ -27,6 +27,7 @@ import math
 import os
 import sys
 import time
+import warnings
 
 
 class _Parser(argparse.ArgumentParser):
@@ -296,8 +297,11 @@ def cmd_demo(args) -> int:
     wv.save_image(args.out, np.concatenate([fast.image, gap, ref.image], axis=1), exposure=exposure)
     print(f"{scene.name}: {scene.camera.width}x{scene.camera.height} on {fast.device} (the first run compiles each "
           "technique's kernels)")
-    print(f"  left:  {fast.technique:<10} {fast_s:6.2f} s  error {error:.3g} against the reference "
-          f"(its defaults; leaves out: {', '.join(fast.leaves_out) or 'nothing'})")
+    approx = "approximated, not left out: "  # frame.leaves_out's mark for what a model approximates
+    approximates = [x[len(approx):] for x in fast.leaves_out if x.startswith(approx)]
+    left_out = [x for x in fast.leaves_out if not x.startswith(approx)]
+    print(f"  left:  {fast.technique:<10} {fast_s:6.2f} s  error {error:.3g} against the reference (its defaults"
+          + "".join(f"; approximates {x}" for x in approximates) + f"; leaves out: {', '.join(left_out) or 'nothing'})")
     print(f"  right: reference  {ref_s:6.2f} s  its own noise {ref.error_estimate:.3g} ({ref.settings['spp']} spp, "
           "all orders of scattering)")
     print(f"  -> {args.out} (exposure {exposure:+.2f} stops)")
@@ -348,6 +352,11 @@ def _cluster_arguments(parser, what: str) -> None:
     group.add_argument("--scheduler", default=None, metavar="tcp://HOST:8786",
                        help=f"{what} the Dask cluster of this scheduler (`dask scheduler`, `dask worker ADDRESS "
                             "--nthreads 1`)")
+
+
+def _one_line_warning(message, category, filename, lineno, line=None) -> str:
+    """A warning as the tool's own line (``warpvol: warning: ...``), not Python's file, line and source."""
+    return f"warpvol: warning: {message}\n"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -438,6 +447,7 @@ def main(argv: list[str] | None = None) -> int:
     from warpvol.pipeline import SettingsError
     from warpvol.scene import SceneError
 
+    warnings.formatwarning = _one_line_warning
     try:
         return args.func(args)
     except (SceneError, SettingsError, DeviceError) as exc:
