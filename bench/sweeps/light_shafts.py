@@ -7,6 +7,9 @@ import warpvol as wv
 from ..harness import baseline_image, time_frames
 from .common import score_against_reference
 
+#: light_shafts as the paper has it: single scattering, every sample shared by the block sum
+PAPER_MODEL = {"multiple_scattering": 0, "light_ball": 0}
+
 
 def shafts_scene(quick: bool, width=800, height=600):
     """colonnade-shafts: 65 660 triangles, one point light in homogeneous fog."""
@@ -28,7 +31,7 @@ def shafts_frame(params: dict, device: str, quick: bool) -> dict:
     pass, the march and the block sums run; the BVH and the medium stay cached."""
     settings = {"steps": 64, "edges": 0, **SHAFT_MODES.get(params.get("mode"), {}),  # the paper's block sum
                 **{k: v for k, v in params.items() if k != "mode"}}
-    r = wv.Renderer(shafts_scene(quick), technique="light_shafts", multiple_scattering=0, device=device, **settings)
+    r = wv.Renderer(shafts_scene(quick), technique="light_shafts", device=device, **PAPER_MODEL, **settings)
     row = time_frames(r, repeats=2 if quick else 5, invalidate=("camera", "lights"))
     row["settings"] = settings
     return row
@@ -54,7 +57,7 @@ def shafts_accuracy_grid(quick: bool) -> list[dict]:
 def shafts_accuracy(params: dict, device: str, quick: bool) -> dict:
     scene = shafts_scene(quick, *ACCURACY_SIZE)
     base = baseline_image(scene, "raymarch", device, steps=64 if quick else 1024)
-    r = wv.Renderer(scene, technique="light_shafts", multiple_scattering=0, device=device, edges=0, **params)  # the paper's block sum
+    r = wv.Renderer(scene, technique="light_shafts", device=device, **PAPER_MODEL, edges=0, **params)  # the paper's block sum
     row = time_frames(r, repeats=2 if quick else 3, invalidate=("camera", "lights"))
     score_against_reference(row, scene, device, 16 if quick else 1024)
     row["rel_rmse_raymarch"] = wv.relative_rmse(row["frame"].image, base)
@@ -73,7 +76,7 @@ def shafts_edges(params: dict, device: str, quick: bool) -> dict:
     import numpy as np
 
     scene = shafts_scene(quick)
-    full_r = wv.Renderer(scene, technique="light_shafts", multiple_scattering=0, device=device, steps=64, block=1, jitter=0)
+    full_r = wv.Renderer(scene, technique="light_shafts", device=device, **PAPER_MODEL, steps=64, block=1, jitter=0)
     full = full_r.render().image
     depth = np.minimum(full_r.arrays(resolution=2)["depth"], 1e3)
     jump = np.zeros(depth.shape, bool)
@@ -90,7 +93,7 @@ def shafts_edges(params: dict, device: str, quick: bool) -> dict:
         near[:-1] |= near[1:]
         near[:, 1:] |= near[:, :-1]
         near[:, :-1] |= near[:, 1:]
-    r = wv.Renderer(scene, technique="light_shafts", multiple_scattering=0, device=device, steps=64, block=m, jitter=0,
+    r = wv.Renderer(scene, technique="light_shafts", device=device, **PAPER_MODEL, steps=64, block=m, jitter=0,
                     edges=params.get("edges", 0))
     row = time_frames(r, repeats=1 if quick else 3, invalidate=("camera", "lights"))
     err = np.abs(row["frame"].image - full).mean(axis=2) / full.mean()
@@ -115,7 +118,7 @@ def shafts_speedup(params: dict, device: str, quick: bool) -> dict:
 
     n, m = params["steps"], params["block"]
     scene = shafts_scene(quick)
-    rs = {k: wv.Renderer(scene, technique="light_shafts", multiple_scattering=0, device=device, steps=n, block=k, edges=0) for k in (1, m)}
+    rs = {k: wv.Renderer(scene, technique="light_shafts", device=device, **PAPER_MODEL, steps=n, block=k, edges=0) for k in (1, m)}
     t0 = time.perf_counter()
     for r in rs.values():
         r.render()
