@@ -531,13 +531,17 @@ def census_section(rows: list[dict], png: Path) -> list[str]:
                            if x.startswith("approximated, not left out") else x
                            for x in (small["leaves_out"] if small is not None else [])) or "–"
         flip = _flip(small) if small is not None else "–"
+        if small is not None and small.get("images", {}).get("flip"):
+            flip += f" ([map]({small['images']['flip']}))"
         lines.append(f"| {scene} | {technique} | {cells[0]} | {cells[1]} | {stage} | {err} | {flip} | {mean} | "
                      f"{truth} | {leaves} |")
     ax.axvline(1.0, color="grey", lw=0.8, ls="--")
     ax.set(xscale="log", yscale="log", xlabel="frame time ÷ the reference's at 16 spp (160x120)",
            ylabel="relative RMSE vs the physical answer", title="every built-in scene, each technique at its defaults")
     _save(fig, ax, png)
-    lines += ["", f"Rows over the reference's time at 16 spp: {'; '.join(over) if over else 'none'}."]
+    lines += ["", f"Rows over the reference's time at 16 spp: {'; '.join(over) if over else 'none'}.", "",
+              "A map is the row's per-pixel HDR-ꟻLIP error against the physical answer in false colour (magma: black "
+              "is no visible difference, yellow the most), to see where a technique errs."]
     return lines
 
 
