@@ -143,3 +143,14 @@ def test_a_built_in_scene_prints_as_toml_that_loads_back(tmp_path):
                         "camera.width=8", "--set", "camera.height=6"], capture_output=True, text=True, cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "fog-box.raymarch.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_warning_is_one_line_of_the_tools_own(tmp_path):
+    """A target the technique cannot reach ends with a warning: one line, ``warpvol: warning: ...``,
+    not Python's file, line number and source line."""
+    r = run("render", "fog-box", "--technique", "raymarch", "--set", "camera.width=8", "--set", "camera.height=6",
+            "--set", "multiple_scattering=0", "--set", "target_error=1e-7", "--out", str(tmp_path / "w.png"))
+    assert r.returncode == 0, r.stderr
+    warned = [line for line in r.stderr.splitlines() if "warning" in line.lower()]
+    assert len(warned) == 1 and warned[0].startswith("warpvol: warning: raymarch: error estimate"), r.stderr
+    assert "cli.py" not in r.stderr and "wv.render(" not in r.stderr
