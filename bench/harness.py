@@ -214,10 +214,14 @@ def digest(obj) -> str:
 REFERENCE_VERSION = 5  # 3: single scattering includes the sky's light; 4: the floor in relative_rmse's measure; 5: shadow rays at concave edges
 
 
+def _reference_path(scene, settings: dict) -> Path:
+    """Where ``reference_image`` keeps ``scene`` (loaded) rendered with ``settings``."""
+    return CACHE / "reference" / f"{scene.name}-{digest([scene, settings, REFERENCE_VERSION])}.npz"
+
+
 def reference_cached(scene, **settings) -> bool:
     """Whether ``reference_image`` of ``scene`` with these settings is on disk already."""
-    scene = wv.load_scene(scene)
-    return (CACHE / "reference" / f"{scene.name}-{digest([scene, settings, REFERENCE_VERSION])}.npz").exists()
+    return _reference_path(wv.load_scene(scene), settings).exists()
 
 
 def reference_image(scene, device: str, **settings) -> tuple[np.ndarray, float]:
@@ -228,7 +232,7 @@ def reference_image(scene, device: str, **settings) -> tuple[np.ndarray, float]:
     seeds: per pixel the mean's standard error is |a - b| / 2.
     """
     scene = wv.load_scene(scene)
-    path = CACHE / "reference" / f"{scene.name}-{digest([scene, settings, REFERENCE_VERSION])}.npz"
+    path = _reference_path(scene, settings)
     if path.exists():
         data = np.load(path)
         return data["image"], float(data["floor"])

@@ -32,16 +32,22 @@ def shafts(scene, device, **kw):
     return wv.render(scene, technique="light_shafts", device=device, **{"multiple_scattering": 0, **kw})
 
 
-def test_airlight_closed_form_and_convergence(device):
-    """Point light in fog, camera inside, no surfaces: the image is the Sun et al. 2005 airlight
-    (here by quadrature). Near the light the integrand peaks like 1/d^2, so the sum converges
-    at first order in practice: each doubling of N at least nearly halves the error."""
+def airlight_scene():
+    """A point light in fog that fills the view, camera inside, no surfaces, and its image: the
+    Sun et al. 2005 airlight (by quadrature), 24 x 18."""
     cam = {"origin": [0, 0, 0], "target": [0, 0, -1], "fov_y": 60.0, "width": 24, "height": 18}
     light = np.array([0.4, 0.2, -2.0])
     scene = {"camera": cam, "lights": [{"type": "point", "position": light.tolist(), "intensity": 10.0}],
              "media": [{"type": "homogeneous", "shape": "sphere", "radius": 50.0, "sigma_t": 0.3, "albedo": 1.0}]}
     o, d = pixel_rays(cam)
-    exact = airlight_exact(o, d.reshape(-1, 3), 50.0, light, np.full(3, 10.0), 0.3, 1.0, n=8192).reshape(18, 24, 3)
+    return scene, airlight_exact(o, d.reshape(-1, 3), 50.0, light, np.full(3, 10.0), 0.3, 1.0, n=8192).reshape(18, 24, 3)
+
+
+def test_airlight_closed_form_and_convergence(device):
+    """Point light in fog, camera inside, no surfaces: the image is the Sun et al. 2005 airlight
+    (here by quadrature). Near the light the integrand peaks like 1/d^2, so the sum converges
+    at first order in practice: each doubling of N at least nearly halves the error."""
+    scene, exact = airlight_scene()
     errs = [np.abs(shafts(scene, device, steps=n, block=1, jitter=0).image - exact).mean() / exact.mean()
             for n in (256, 512, 1024, 2048)]
     assert all(b < 0.6 * a for a, b in zip(errs, errs[1:])), errs
@@ -61,12 +67,7 @@ def test_the_lights_peak_stays_in_its_pixel(device):
     equiangular rule's error is about 0.5%, the jittered shared samples outside the ball add
     their noise). With the paper's shared samples throughout (``light_ball`` = 0) the peak is
     spread over its block: those pixels are off by more than 20%."""
-    cam = {"origin": [0, 0, 0], "target": [0, 0, -1], "fov_y": 60.0, "width": 24, "height": 18}
-    light = np.array([0.4, 0.2, -2.0])
-    scene = {"camera": cam, "lights": [{"type": "point", "position": light.tolist(), "intensity": 10.0}],
-             "media": [{"type": "homogeneous", "shape": "sphere", "radius": 50.0, "sigma_t": 0.3, "albedo": 1.0}]}
-    o, d = pixel_rays(cam)
-    exact = airlight_exact(o, d.reshape(-1, 3), 50.0, light, np.full(3, 10.0), 0.3, 1.0, n=8192).reshape(18, 24, 3)
+    scene, exact = airlight_scene()
     peak = exact[..., 0] >= np.quantile(exact[..., 0], 0.95)
     err = {ball: np.abs(shafts(scene, device, light_ball=ball).image - exact)[peak].mean() / exact[peak].mean()
            for ball in (0.0, 4.0)}

@@ -61,7 +61,7 @@ from . import device as dev
 from .geometry.intersect import ray_box
 from .geometry.mesh import Surfaces, surface_hit
 from .physics.brdf import Material
-from .media.grid import lattice_at_vec3
+from .media.grid import lattice_at_vec3, lattice_cell, trilinear_weights
 from .media.volume import Media, medium_sigma_t
 from .physics.constants import INF, PI, RAY_EPS
 from .physics.lights import DIRECTIONAL, Emitter, ball_mean_inverse_square, light_incident
@@ -232,32 +232,18 @@ def reflected_field(field: wp.array(dtype=wp.vec3), lat: Lattice, mat: Material,
     (the weights of those behind it, inside a solid or beyond a wall where the field is not the
     one arriving here, are dropped and the rest renormalised); all eight where none is in front."""
     N = lat.n
-    g = lattice_coords(lat, p)
-    fx = wp.clamp(g[0], 0.0, float(N - 1))
-    fy = wp.clamp(g[1], 0.0, float(N - 1))
-    fz = wp.clamp(g[2], 0.0, float(N - 1))
-    x0 = wp.min(int(fx), N - 2)
-    y0 = wp.min(int(fy), N - 2)
-    z0 = wp.min(int(fz), N - 2)
-    tx = fx - float(x0)
-    ty = fy - float(y0)
-    tz = fz - float(z0)
-    q = (z0 * N + y0) * N + x0
+    q, t = lattice_cell(N, lattice_coords(lat, p))
     sy = N
     sz = N * N
-    w0 = wp.vec4(corner_weight(lat, q, (1.0 - tx) * (1.0 - ty) * (1.0 - tz), p, n),
-                 corner_weight(lat, q + 1, tx * (1.0 - ty) * (1.0 - tz), p, n),
-                 corner_weight(lat, q + sy, (1.0 - tx) * ty * (1.0 - tz), p, n),
-                 corner_weight(lat, q + sy + 1, tx * ty * (1.0 - tz), p, n))
-    w1 = wp.vec4(corner_weight(lat, q + sz, (1.0 - tx) * (1.0 - ty) * tz, p, n),
-                 corner_weight(lat, q + sz + 1, tx * (1.0 - ty) * tz, p, n),
-                 corner_weight(lat, q + sz + sy, (1.0 - tx) * ty * tz, p, n),
-                 corner_weight(lat, q + sz + sy + 1, tx * ty * tz, p, n))
+    plain0, plain1 = trilinear_weights(t)
+    w0 = wp.vec4(corner_weight(lat, q, plain0[0], p, n), corner_weight(lat, q + 1, plain0[1], p, n),
+                 corner_weight(lat, q + sy, plain0[2], p, n), corner_weight(lat, q + sy + 1, plain0[3], p, n))
+    w1 = wp.vec4(corner_weight(lat, q + sz, plain1[0], p, n), corner_weight(lat, q + sz + 1, plain1[1], p, n),
+                 corner_weight(lat, q + sz + sy, plain1[2], p, n), corner_weight(lat, q + sz + sy + 1, plain1[3], p, n))
     total = w0[0] + w0[1] + w0[2] + w0[3] + w1[0] + w1[1] + w1[2] + w1[3]
     if total <= 1.0e-6:  # no node in front: the plain trilinear weights
-        w0 = wp.vec4((1.0 - tx) * (1.0 - ty) * (1.0 - tz), tx * (1.0 - ty) * (1.0 - tz),
-                     (1.0 - tx) * ty * (1.0 - tz), tx * ty * (1.0 - tz))
-        w1 = wp.vec4((1.0 - tx) * (1.0 - ty) * tz, tx * (1.0 - ty) * tz, (1.0 - tx) * ty * tz, tx * ty * tz)
+        w0 = plain0
+        w1 = plain1
         total = 1.0
     out = wp.vec3(0.0)
     D = lat.directions.shape[0]

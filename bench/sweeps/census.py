@@ -93,20 +93,9 @@ def census(params: dict, device: str, quick: bool) -> dict:
     row["defaults"] = {k: v for k, v in r.settings.items() if k in type(r.technique).SETTINGS}
     if quick or size == CENSUS_SIZE:
         spp = truth_spp(scene, device, quick)
-        ref = score(row, scene, device, spp, max_bounces=-1)
+        ref = score(row, scene, device, spp, max_bounces=-1, error_map=True)  # the map: where the error is
         row["mean_ratio"] = float(row["frame"].image.mean() / ref.mean())
-        _, flip_map = wv.hdr_flip(row["frame"].image, ref, error_map=True)
-        row["images"] = {"flip": display_to_linear(flip_map)}  # where the error is, beside the JSON
     return row
-
-
-def display_to_linear(image):
-    """The sRGB decoding of a display-ready image (FLIP's false colours), so that ``save_image``,
-    which encodes linear radiance as sRGB, writes the colours as they are."""
-    import numpy as np
-
-    c = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
 
 
 def reference_ms(rows: list[dict], scene: str, size: tuple[int, int]) -> float | None:

@@ -63,18 +63,32 @@ def row_fps(table: dict, params: dict):
     return None
 
 
-def score(row: dict, scene, device: str, spp: int, max_bounces: int = 1, pixel_area: int = 0) -> np.ndarray:
+def score(row: dict, scene, device: str, spp: int, max_bounces: int = 1, pixel_area: int = 0,
+          error_map: bool = False) -> np.ndarray:
     """Add to ``row`` the relative RMSE (and HDR-FLIP) of its frame against the reference at pixel centres
     (``max_bounces`` 1: single scattering, what the real-time techniques compute, without
     their error; two seeds of ``spp``), raw and with the reference's own noise removed: that
-    noise adds in quadrature, E[err^2 to a noisy ref] = err^2 + floor^2. Returns the reference."""
+    noise adds in quadrature, E[err^2 to a noisy ref] = err^2 + floor^2. With ``error_map``, the
+    row also shows where its FLIP error lies (``images["flip"]``, false colour, written as a PNG
+    beside the sweep's JSON). Returns the reference."""
     ref, floor = reference_image(scene, device, spp=spp, max_bounces=max_bounces, pixel_area=pixel_area)
     row["rel_rmse"] = wv.relative_rmse(row["frame"].image, ref)
     row["rel_rmse_corrected"] = max(row["rel_rmse"] ** 2 - floor**2, 0.0) ** 0.5
-    row["hdr_flip"] = wv.hdr_flip(row["frame"].image, ref)  # the second measure (metrics.hdr_flip)
+    if error_map:  # the second measure (metrics.hdr_flip), and its map
+        row["hdr_flip"], flip_map = wv.hdr_flip(row["frame"].image, ref, error_map=True)
+        row.setdefault("images", {})["flip"] = display_to_linear(flip_map)
+    else:
+        row["hdr_flip"] = wv.hdr_flip(row["frame"].image, ref)
     row["reference"] = {"spp": 2 * spp, "max_bounces": max_bounces, "pixel_area": pixel_area, "rel_rmse_floor": floor}
     row["scene"] = f"{scene.name} {scene.camera.width}x{scene.camera.height}"
     return ref
+
+
+def display_to_linear(image: np.ndarray) -> np.ndarray:
+    """The sRGB decoding of a display-ready image (FLIP's false colours), so that ``save_image``,
+    which encodes linear radiance as sRGB, writes the colours as they are."""
+    c = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
 
 
 def score_against_reference(row: dict, scene, device: str, spp: int) -> dict:

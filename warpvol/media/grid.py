@@ -295,19 +295,40 @@ def lattice_trilinear_vec3(values: wp.array(dtype=wp.vec3), base: int, stride: i
 
 
 @wp.func
-def lattice_at_vec3(values: wp.array(dtype=wp.vec3), base: int, stride: int, n: int, g: wp.vec3) -> wp.vec3:
-    """``lattice_trilinear_vec3`` at lattice coordinates g (node (i, j, k) at g = (i, j, k);
-    clamped to the lattice), for lattices whose nodes are not evenly spaced."""
+def lattice_cell(n: int, g: wp.vec3):
+    """The cell of an n^3 lattice that holds lattice coordinates g (node (i, j, k) at g = (i, j, k);
+    clamped to the lattice): its first node's index (z0 n + y0) n + x0, x fastest, and g's place
+    in the cell, in [0, 1]^3."""
     fx = wp.clamp(g[0], 0.0, float(n - 1))
     fy = wp.clamp(g[1], 0.0, float(n - 1))
     fz = wp.clamp(g[2], 0.0, float(n - 1))
     x0 = wp.min(int(fx), n - 2)
     y0 = wp.min(int(fy), n - 2)
     z0 = wp.min(int(fz), n - 2)
-    tx = fx - float(x0)
-    ty = fy - float(y0)
-    tz = fz - float(z0)
-    i = base + ((z0 * n + y0) * n + x0) * stride
+    return (z0 * n + y0) * n + x0, wp.vec3(fx - float(x0), fy - float(y0), fz - float(z0))
+
+
+@wp.func
+def trilinear_weights(t: wp.vec3):
+    """The weights of a cell's eight nodes at t in it: the nodes (0, 0), (1, 0), (0, 1), (1, 1) in
+    (x, y) at z = 0, then the same four at z = 1."""
+    tx = t[0]
+    ty = t[1]
+    tz = t[2]
+    return (wp.vec4((1.0 - tx) * (1.0 - ty) * (1.0 - tz), tx * (1.0 - ty) * (1.0 - tz), (1.0 - tx) * ty * (1.0 - tz),
+                    tx * ty * (1.0 - tz)),
+            wp.vec4((1.0 - tx) * (1.0 - ty) * tz, tx * (1.0 - ty) * tz, (1.0 - tx) * ty * tz, tx * ty * tz))
+
+
+@wp.func
+def lattice_at_vec3(values: wp.array(dtype=wp.vec3), base: int, stride: int, n: int, g: wp.vec3) -> wp.vec3:
+    """``lattice_trilinear_vec3`` at lattice coordinates g (node (i, j, k) at g = (i, j, k);
+    clamped to the lattice), for lattices whose nodes are not evenly spaced."""
+    q, t = lattice_cell(n, g)
+    tx = t[0]
+    ty = t[1]
+    tz = t[2]
+    i = base + q * stride
     sx = stride
     sy = n * stride
     sz = n * n * stride
