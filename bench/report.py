@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+import warpvol as wv
+
 from .sweeps import SWEEPS
 
 
@@ -508,8 +510,8 @@ def census_section(rows: list[dict], png: Path) -> list[str]:
             ratio = r["median_ms"] / ref if ref and technique != "reference" else None
             if ratio is not None and ratio > 1.0:
                 over.append(f"{scene} {technique} {size[0]}x{size[1]} ({ratio:.2f}x)")
-            cells.append(f"{r['median_ms']:.0f}" + (f" ({'**' if ratio > 1 else ''}{ratio:.2f}"
-                                                      f"{'**' if ratio > 1 else ''})" if ratio is not None else ""))
+            bold = "**" if ratio is not None and ratio > 1.0 else ""
+            cells.append(f"{r['median_ms']:.0f}" + (f" ({bold}{ratio:.2f}{bold})" if ratio is not None else ""))
         if len(cells) == 1 or next(iter(sizes)) == CENSUS_SIZE:
             cells = [cells[0], "(the same)"]
         small = next((r for r in sizes.values() if "rel_rmse_corrected" in r), sizes.get(CENSUS_SIZE))
@@ -528,7 +530,7 @@ def census_section(rows: list[dict], png: Path) -> list[str]:
                                color=colour[technique], label=None if technique in plotted else technique)
                     plotted.add(technique)
         leaves = "; ".join("multiple scattering, indirect light: approximated (lattice)"
-                           if x.startswith("approximated, not left out") else x
+                           if x.startswith(wv.Frame.APPROXIMATED) else x
                            for x in (small["leaves_out"] if small is not None else [])) or "–"
         flip = _flip(small) if small is not None else "–"
         if small is not None and small.get("images", {}).get("flip"):

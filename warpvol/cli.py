@@ -297,11 +297,9 @@ def cmd_demo(args) -> int:
     wv.save_image(args.out, np.concatenate([fast.image, gap, ref.image], axis=1), exposure=exposure)
     print(f"{scene.name}: {scene.camera.width}x{scene.camera.height} on {fast.device} (the first run compiles each "
           "technique's kernels)")
-    approx = "approximated, not left out: "  # frame.leaves_out's mark for what a model approximates
-    approximates = [x[len(approx):] for x in fast.leaves_out if x.startswith(approx)]
-    left_out = [x for x in fast.leaves_out if not x.startswith(approx)]
     print(f"  left:  {fast.technique:<10} {fast_s:6.2f} s  error {error:.3g} against the reference (its defaults"
-          + "".join(f"; approximates {x}" for x in approximates) + f"; leaves out: {', '.join(left_out) or 'nothing'})")
+          + "".join(f"; approximates {x}" for x in fast.approximates)
+          + f"; leaves out: {', '.join(fast.omits) or 'nothing'})")
     print(f"  right: reference  {ref_s:6.2f} s  its own noise {ref.error_estimate:.3g} ({ref.settings['spp']} spp, "
           "all orders of scattering)")
     print(f"  -> {args.out} (exposure {exposure:+.2f} stops)")

@@ -231,6 +231,9 @@ class Frame:
     time ``image`` is read, so timing a frame does not time the read-back.
     """
 
+    #: How an entry of ``leaves_out`` starts when the model approximates that physics rather than omits it.
+    APPROXIMATED = "approximated, not left out: "
+
     def __init__(self, output, shape: tuple[int, int], technique: str, device: str, settings: dict,
                  stages: dict[str, StageRun], leaves_out: list[str] | None = None):
         self.leaves_out = list(leaves_out or [])  # what the technique's model leaves out of the physics
@@ -245,6 +248,16 @@ class Frame:
         self.device = device
         self.settings = settings
         self.stages = stages
+
+    @property
+    def approximates(self) -> list[str]:
+        """The entries of ``leaves_out`` the model approximates (after the ``APPROXIMATED`` mark)."""
+        return [x[len(self.APPROXIMATED):] for x in self.leaves_out if x.startswith(self.APPROXIMATED)]
+
+    @property
+    def omits(self) -> list[str]:
+        """The entries of ``leaves_out`` the model has no part of."""
+        return [x for x in self.leaves_out if not x.startswith(self.APPROXIMATED)]
 
     def _repr_png_(self) -> bytes:
         """The image as a PNG (sRGB, exposure 0): what a notebook (Jupyter, IPython) shows for a Frame."""

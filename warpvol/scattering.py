@@ -68,7 +68,7 @@ from .physics.lights import DIRECTIONAL, Emitter, ball_mean_inverse_square, ligh
 from .physics.phase import phase_eval
 from .physics.sphere import fibonacci_directions
 from .physics.transmittance import step_integral_rgb, transmittance_rgb
-from .pipeline import Bias, Setting, SettingsError, Stage
+from .pipeline import Bias, Frame, Setting, SettingsError, Stage
 from .shading import light_transmittance, reflected, surface_direct
 from .upload import MediaBuffers
 
@@ -93,7 +93,7 @@ BIASES = (Bias("multiple_scattering", factor=2, order=1, when="multiple", top=MS
           Bias("ms_directions", factor=2, order=1, when="multiple", top=2 * MS_TOP))
 
 #: What a technique leaves out with the term on (and the one it does not have without it).
-LEFT_OUT_WITH = ("approximated, not left out: multiple scattering and the surfaces' indirect light (and the sky's "
+LEFT_OUT_WITH = (Frame.APPROXIMATED + "multiple scattering and the surfaces' indirect light (and the sky's "
                  "light where the technique does not gather it), on a lattice (multiple_scattering, ms_directions)")
 LEFT_OUT_WITHOUT = "multiple scattering"
 

@@ -107,7 +107,7 @@ from ..geometry.shadowmap import (
 )
 from ..media.volume import Media, homogeneous_optical_depth, in_scatter_at, scattering_at, sigma_t_at
 from ..physics.constants import INF, RAY_EPS
-from ..physics.lights import (angle_point, angle_samples, angle_share, ball_chord, step_angle,
+from ..physics.lights import (Emitter, angle_point, angle_samples, angle_share, ball_chord, step_angle,
                               step_mean_irradiance)
 from ..physics.transmittance import transmittance_rgb
 from ..pipeline import Bias, Quality, Setting, Stage, Technique
@@ -226,6 +226,13 @@ def shade_visible_surface(offset: int, cam: RasterView, m: Media, s: Surfaces, s
 
 
 @wp.func
+def pixel_ball(light: Emitter, o: wp.vec3, d: wp.vec3, near: float) -> wp.vec2:
+    """Where the view ray o + t d crosses light's ball (``ball_chord``), whose radius is ``near``
+    (``ShaftSettings.near``) times the light's distance from the camera."""
+    return ball_chord(light, o, d, near * wp.length(light.position - o))
+
+
+@wp.func
 def outside_ball(c0: float, w: float, chord: wp.vec2) -> float:
     """The length of the sample cell [c0, c0 + w] outside a light's ball (``ball_chord``)."""
     return w - wp.max(wp.min(c0 + w, chord[1]) - wp.max(c0, chord[0]), 0.0)
@@ -283,7 +290,7 @@ def march_shafts(offset: int, cam: RasterView, m: Media, sl: ShadowedLights, seg
     own = wp.vec3(0.0)
     if ta < tb and st.scattering == 1:
         for l in range(sl.lights.shape[0]):
-            chord = ball_chord(sl.lights[l], o, d, st.near * wp.length(sl.lights[l].position - o))
+            chord = pixel_ball(sl.lights[l], o, d, st.near)
             own += near_light(m, sl, l, o, d, ta, tb, chord, st.shadow_steps, st.steps)
         t_end = tb  # where the samples are spread: up to the surface (paper) or through the media
         if st.spacing == 1:
@@ -307,7 +314,7 @@ def march_shafts(offset: int, cam: RasterView, m: Media, sl: ShadowedLights, seg
                 x = o + lk * d
                 tau_v = homogeneous_optical_depth(m, o, d, 0.0, lk)
                 for l in range(sl.lights.shape[0]):
-                    chord = ball_chord(sl.lights[l], o, d, st.near * wp.length(sl.lights[l].position - o))
+                    chord = pixel_ball(sl.lights[l], o, d, st.near)
                     w_l = outside_ball(c0, w, chord)  # the ball is the pixel's own (near_light)
                     if w_l > 0.0:
                         wi, e, tau = light_arriving(m, sl, l, x, wp.vec3(0.0), st.shadow_steps)
@@ -332,7 +339,7 @@ def march_shafts(offset: int, cam: RasterView, m: Media, sl: ShadowedLights, seg
                 if k % stride == k0:
                     tau_v = tau + homogeneous_optical_depth(m, o, d, ta, lk) + sig * (u * w)
                     for l in range(sl.lights.shape[0]):
-                        chord = ball_chord(sl.lights[l], o, d, st.near * wp.length(sl.lights[l].position - o))
+                        chord = pixel_ball(sl.lights[l], o, d, st.near)
                         w_l = outside_ball(c0, w, chord)
                         if w_l > 0.0:
                             wi, e, tau_l = light_arriving(m, sl, l, x, wp.vec3(0.0), st.shadow_steps)
@@ -379,8 +386,8 @@ def block_sum_cols(offset: int, rows: wp.array(dtype=wp.vec3), surface: wp.array
 
 @wp.kernel
 def block_sum_depth_aware(offset: int, values: wp.array(dtype=wp.vec3), surface: wp.array(dtype=wp.vec3),
-                          own: wp.array(dtype=wp.vec3), t_hit: wp.array(dtype=float), width: int, height: int, block: int, tolerance: float,
-                          image: wp.array(dtype=wp.vec3)):
+                          own: wp.array(dtype=wp.vec3), t_hit: wp.array(dtype=float), width: int, height: int,
+                          block: int, tolerance: float, image: wp.array(dtype=wp.vec3)):
     """The M x M block sum over the neighbours whose visible surface lies within ``tolerance``
     (relative) of this pixel's, scaled by M^2 / (neighbours kept): the samples of the residue
     classes left out are replaced by the mean of those kept. Where depth is smooth every
