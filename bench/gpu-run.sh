@@ -22,10 +22,11 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-#: What the campaign imports beyond numpy and pytest, pinned (pure Python except OpenEXR);
+#: What the campaign imports beyond numpy and pytest, pinned (pure Python except OpenEXR and
+#: flip-evaluator, the accuracy rows' second measure);
 #: pyvista, Dask, Mitsuba and miepython are left behind: their tests skip.
 WHEELS=(tqdm==4.70.1 OpenEXR==3.5.3 hypothesis==6.170.17 sortedcontainers==2.4.0
-        pytest-benchmark==5.3.1 py-cpuinfo2==10.1.1)
+        pytest-benchmark==5.3.1 py-cpuinfo2==10.1.1 flip-evaluator==1.7)
 SITE=${WARPVOL_SITE:-/tmp/site}
 DEVICE=${WARPVOL_CAMPAIGN_DEVICE:-cuda}
 
