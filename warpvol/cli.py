@@ -3,7 +3,7 @@
     python -m warpvol render SCENE --technique NAME --out OUT.exr [--out OUT.png] [--device cpu|cuda]
                              [--spp N] [--set key=value ...] [--timings] [--exposure EV]
                              [--workers N | --scheduler tcp://HOST:8786]     # the reference, on Dask
-    python -m warpvol bench --list | SWEEP [--quick] [--device ...] [--out results] | report [SWEEP ...]
+    python -m warpvol bench --list | SWEEP [--quick] [--device ...] [--out results] | report [SWEEP ...] [--overview]
                             [--workers N | --scheduler tcp://HOST:8786]      # the points, on Dask
     python -m warpvol view SCENE [--screenshot FILE.png] [--technique NAME] [--set key=value ...]
     python -m warpvol scenes
@@ -202,6 +202,15 @@ def cmd_bench(args) -> int:
         for name, sweep in SWEEPS.items():
             print(f"{name:<38} {sweep.technique:<21} {sweep.doc}")
         return 0
+    if args.sweep[0] == "report" and args.overview:
+        from warpvol.bench.overview import write
+
+        if args.sweep[1:]:
+            raise ValueError("bench report --overview writes results/README.md from every page; name no sweep")
+        print(f"overview: {write(args.out)}")
+        return 0
+    if args.overview:
+        raise ValueError("--overview goes with `bench report` (python -m warpvol bench report --overview)")
     if args.sweep[0] == "report":
         names = args.sweep[1:] or [n for n in SWEEPS if os.path.isdir(os.path.join(args.out, n))]
         for name in names:
@@ -382,6 +391,8 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument("sweep", nargs="*", help="sweep names, or `report [SWEEP ...]` (see --list)")
     b.add_argument("--list", action="store_true", help="list the sweeps and whether they can run yet")
     b.add_argument("--quick", action="store_true", help="a reduced sweep that finishes in seconds")
+    b.add_argument("--overview", action="store_true",
+                   help="with `report`: write results/README.md from bench/overview.md and the pages' data")
     b.add_argument("--device", default=None, help=DEVICE_HELP)
     b.add_argument("--out", default="results", help="results folder (default: results)")
     _cluster_arguments(b, "run the sweep's points as tasks on")
