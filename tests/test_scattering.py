@@ -56,6 +56,33 @@ def test_white_furnace_converges_to_the_sky(device):
     assert errors[1] < 0.04
 
 
+def test_the_lattice_carries_the_sky_and_directions_serve_the_floor_beyond(device):
+    """With the lattice on, raymarch does not march toward the sky's directions at every step (the
+    lattice carries the sky's light, every order of it): on the furnace, with no surface, the image
+    is the same for 2 and 64 sky directions. A floor far wider than a box of fog, under a uniform
+    sky of radiance 1: beyond the lattice's field the floor gathers the sky from ``sky_samples``
+    directions, exact for an unshadowed Lambertian point (rho L, rho = 0.5, to float rounding);
+    with ``sky_samples`` = 0 it gets none, and ``leaves_out`` says so."""
+    scene = furnace()
+    few, many = (wv.render(scene, technique="raymarch", device=device, sky_samples=k).image for k in (2, 64))
+    assert np.array_equal(few, many)
+    floor = wv.load_scene({
+        "camera": {"origin": [0, 2.0, 6.0], "target": [0, -1.0, 0], "fov_y": 50, "width": 24, "height": 18},
+        "background": [1.0, 1.0, 1.0],
+        "media": [{"type": "homogeneous", "shape": "box", "center": [0, 0, 0], "size": [0.6, 0.6, 0.6],
+                   "sigma_t": 2.0, "albedo": 0.9}],
+        "surfaces": [{"type": "plane", "center": [0, -1.0, 0], "normal": [0, 1, 0], "size": [40.0, 40.0],
+                      "diffuse": 0.5}],
+    })
+    lit = wv.render(floor, technique="raymarch", device=device)
+    dark = wv.render(floor, technique="raymarch", device=device, sky_samples=0)
+    bottom = lit.image[-2:]  # the floor in front of the camera, far from the box and its lattice
+    np.testing.assert_allclose(bottom, 0.5, rtol=1e-4)
+    assert np.all(dark.image[-2:] == 0.0)
+    assert any("beyond the media's bounds" in s for s in dark.leaves_out)
+    assert not any("beyond the media's bounds" in s for s in lit.leaves_out)
+
+
 @wp.kernel
 def read_reflected(field: wp.array(dtype=wp.vec3), lat: Lattice, mat: Material, p: wp.array(dtype=wp.vec3),
                    n: wp.vec3, out: wp.array(dtype=wp.vec3)):

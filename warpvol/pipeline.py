@@ -176,7 +176,7 @@ class Technique:
         out = list(self.LEAVES_OUT)
         if has_sky(self.scene) and not self.gathers_sky:
             if self.settings.get("multiple_scattering", 0) > 0:  # the lattice carries it over the media
-                if self.scene.surfaces:
+                if self.scene.surfaces and self.settings.get("sky_samples", 0) == 0:
                     out.append("the sky's light reflected by surfaces beyond the media's bounds")
             else:
                 out.append("the sky's light (the background) scattered in the media or reflected by surfaces")

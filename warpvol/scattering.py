@@ -261,13 +261,20 @@ def reflected_field(field: wp.array(dtype=wp.vec3), lat: Lattice, mat: Material,
 
 
 @wp.func
+def field_reaches(sl: ScatteredLight, p: wp.vec3) -> bool:
+    """Whether the lattice's field covers a surface at p: the term is on and p lies within a
+    cell of the lattice's bounds."""
+    if sl.lat.n == 0:
+        return False
+    return inside_margin(sl.lat.lo, sl.lat.hi, wp.max(cell_size(sl.lat, p)), p)
+
+
+@wp.func
 def scattered_on_surface(sl: ScatteredLight, mat: Material, p: wp.vec3, n: wp.vec3, wo: wp.vec3) -> wp.vec3:
     """What a surface at p (normal n facing wo) reflects toward wo of the light the media have
-    scattered and the surfaces have reflected (``reflected_field`` of L_{>=1}); zero without
-    the term or farther than a cell outside the lattice."""
-    if sl.lat.n == 0:
-        return wp.vec3(0.0)
-    if not inside_margin(sl.lat.lo, sl.lat.hi, wp.max(cell_size(sl.lat, p)), p):
+    scattered and the surfaces have reflected (``reflected_field`` of L_{>=1}); zero where the
+    field does not reach (``field_reaches``)."""
+    if not field_reaches(sl, p):
         return wp.vec3(0.0)
     return reflected_field(sl.field, sl.lat, mat, p, n, wo)
 

@@ -13,11 +13,15 @@ equal angles seen from the light (equiangular points, Kulla & Fajardo 2012), eac
 phase function, shadow and falloff: a coarse march no longer misses the light's peak (the fog-box
 rows of results/multiple-scattering).
 Surfaces are lit directly. The sky (the background radiance) is a light
-too: its single scattering is gathered at every step from ``sky_samples`` directions over
-the sphere (``upload.sky_lights``), sum_k sigma_s p_k T_k / sum_k sigma_s p_k times
-sigma_s L_sky, and on surfaces as pi f L_sky sum_k cos_k T_k / sum_k cos_k; both exact where
-nothing shadows the point, and the error of the shadowed part falls as the directions grow.
-Each sky direction's transmittance is marched with an eighth of ``shadow_steps``.
+too. With the multiple-scattering lattice on (the default) the lattice carries it, every order
+of it, in the media and on the surfaces its field reaches; surfaces beyond the field (a floor
+past a cloud) gather it from ``sky_samples`` directions over the sphere (``upload.sky_lights``)
+as pi f L_sky sum_k cos_k T_k / sum_k cos_k. Without the lattice its single scattering is also
+gathered at every step from those directions, sum_k sigma_s p_k T_k / sum_k sigma_s p_k times
+sigma_s L_sky: exact where nothing shadows the point, the error of the shadowed part falling as
+the directions grow, at the price of a march toward each direction at every step (the cost that
+the lattice removes; results/defaults). Each sky direction's transmittance is marched with an
+eighth of ``shadow_steps``.
 
 With ``shadow_grid`` = n > 0, the transmittance from each light is baked once on an n^3
 lattice over the heterogeneous media (stage ``light_volume``, which reads the medium and
@@ -57,7 +61,7 @@ from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Bias, Quality, Setting, SettingsError, Stage, Technique
 from ..scattering import BIASES as MS_BIASES
 from ..scattering import SETTINGS as MS_SETTINGS
-from ..scattering import MultipleScattering, ScatteredLight, scattered_light, scattered_on_surface
+from ..scattering import MultipleScattering, ScatteredLight, field_reaches, scattered_light, scattered_on_surface
 from ..scattering import check_settings as check_ms_settings
 from ..scattering import leaves_out as ms_leaves_out
 from ..shading import (camera_segment, light_transmittance, marched_optical_depth, reflected, sky_reflected,
@@ -72,10 +76,12 @@ SETTINGS = {
     "steps": Setting(64, 1, 1 << 20, "steps along each camera ray (used when step_length = 0)"),
     "step_length": Setting(0.0, 0.0, 1.0e6, "step length in scene units; 0 = use steps"),
     "shadow_steps": Setting(32, 1, 1 << 20, "steps along each ray toward a light through grid media (the others: closed form)"),
-    "shadow_grid": Setting(0, 0, 512, "nodes per axis of the baked light-transmittance volume; 0 = march to the lights"),
-    "sky_samples": Setting(8, 0, 4096, "directions the sky's light (the background) is gathered from at every step "
-                                       "and surface point (each marched like a light); 0: the multiple-scattering "
-                                       "lattice carries it, or it is left out"),
+    "shadow_grid": Setting(32, 0, 512, "nodes per axis of the baked light-transmittance volume over heterogeneous "
+                                       "media; 0 = march to the lights at every step"),
+    "sky_samples": Setting(8, 0, 4096, "directions the sky's light (the background) is gathered from, each marched "
+                                       "like a light: on surfaces beyond the multiple-scattering lattice's field, and "
+                                       "at every step too when the lattice is off (multiple_scattering = 0); 0: left "
+                                       "out there"),
     **MS_SETTINGS,
     **EXTINCTION_SETTINGS,
 }
@@ -87,6 +93,7 @@ class MarchSettings:
     step_length: float
     shadow_steps: int
     shadow_grid: int  # nodes per axis of the baked transmittance lattice; 0: none
+    baked_lights: int  # the lights baked (the scene's, then the sky's directions where they are marched per step)
     grid_lo: wp.vec3
     grid_hi: wp.vec3
 
@@ -121,7 +128,7 @@ def light_at(m: Media, s: Surfaces, l: int, x: wp.vec3, wi: wp.vec3, dist: float
     """Transmittance from light l (the scene's lights, then the sky's directions, as baked) to
     x: past the surfaces, and through the media marched or read from the baked lattice."""
     rng = wp.uint32(0)  # unused: transmittance is marched, not estimated
-    if st.shadow_grid > 0 and inside_box(x, st.grid_lo, st.grid_hi):
+    if st.shadow_grid > 0 and l < st.baked_lights and inside_box(x, st.grid_lo, st.grid_hi):
         if occluded(s, x, wi, dist):
             return wp.vec3(0.0)
         g = st.shadow_grid
@@ -212,7 +219,7 @@ def march_single_scattering(offset: int, cam: RasterView, m: Media, s: Surfaces,
                                 e = angle_share(lights[l], e, dist, h, phi, na, dt)
                             tl = light_at(m, s, l, xj, wi, dist, st, baked, st.shadow_steps)
                             inscatter += wp.cw_mul(wp.cw_mul(in_scatter_at(m, xj, wp.dot(d, wi)), e), tl)
-                if sky.directions.shape[0] > 0:
+                if sky.directions.shape[0] > 0 and ms.lat.n == 0:  # else the lattice carries the sky
                     inscatter += sky_in_scatter(m, s, sky, x, d, st, baked)
                 if ms.lat.n > 0:
                     inscatter += scattered_light(ms, scattering_at(m, x), x)
@@ -224,7 +231,7 @@ def march_single_scattering(offset: int, cam: RasterView, m: Media, s: Surfaces,
         p = o + t_surf * d
         Ls = surface_direct(m, s, lights, p, nf, -d, s.material[face], 0, rng, st.shadow_steps)
         Ls += scattered_on_surface(ms, s.material[face], p, nf, -d)
-        if sky.directions.shape[0] > 0:
+        if sky.directions.shape[0] > 0 and not field_reaches(ms, p):  # beyond the lattice's field
             Ls += sky_on_surface(m, s, sky, p, nf, -d, face, st, baked)
         L += wp.cw_mul(tr, Ls)
     else:
@@ -253,6 +260,13 @@ class Raymarch(Technique):
     def leaves_out(self) -> list[str]:
         return [*ms_leaves_out(self.settings), *super().leaves_out()]
 
+    @property
+    def gathers_sky(self) -> bool:
+        """The sky's directions are gathered at every step only without the lattice: with it,
+        the lattice carries the sky's light (all orders, the media's shadows on it included)
+        and ``sky_samples`` serves the surfaces beyond its field."""
+        return self.settings["sky_samples"] > 0 and self.multiple.n == 0
+
     def diagnostics(self) -> dict:
         return {**self.multiple.diagnostics(), **self.uploads.diagnostics()}
 
@@ -266,6 +280,7 @@ class Raymarch(Technique):
         st.steps, st.step_length = self.settings["steps"], self.settings["step_length"]
         st.shadow_steps = self.settings["shadow_steps"]
         st.shadow_grid = self.settings["shadow_grid"] if self._bakes() else 0
+        st.baked_lights = len(self._baked_lights())
         st.grid_lo, st.grid_hi = wp.vec3(0.0), wp.vec3(0.0)
         if st.shadow_grid:
             st.grid_lo, st.grid_hi = self.uploads.media.struct.het_min, self.uploads.media.struct.het_max
@@ -274,8 +289,14 @@ class Raymarch(Technique):
     def _bakes(self) -> bool:
         """A baked volume pays only where transmittance is marched: heterogeneous media, some light."""
         scene = self.scene
-        lit = bool(scene.lights) or bool(self._sky())
-        return self.settings["shadow_grid"] > 0 and lit and any(m.type != "homogeneous" for m in scene.media)
+        return self.settings["shadow_grid"] > 0 and bool(self._baked_lights()) and \
+            any(m.type != "homogeneous" for m in scene.media)
+
+    def _baked_lights(self) -> list:
+        """What the light volume bakes, in this order: the scene's lights, and the sky's directions
+        where the march gathers them at every step (not where the lattice carries the sky: a
+        surface beyond its field is marched to)."""
+        return light_structs(self.scene) + (self._sky() if self.multiple.n == 0 else [])
 
     def _sky(self) -> list:
         return sky_light_structs(self.scene.background, self.settings["sky_samples"]) if self.scene.media else []
@@ -283,7 +304,7 @@ class Raymarch(Technique):
     def stages(self):
         return self.uploads.stages() + [
             Stage("light_volume", self._bake, reads=("medium", "lights", "background"),
-                  settings=("shadow_grid", "shadow_steps", "sky_samples"),
+                  settings=("shadow_grid", "shadow_steps", "sky_samples", "multiple_scattering"),
                   after=("medium", "lights"), needed=self._bakes()),
             *self.multiple.stages(after=("medium", "surfaces", "lights")),
             Stage("march", self._march, reads=("camera", "background"), settings=tuple(SETTINGS),
@@ -292,7 +313,7 @@ class Raymarch(Technique):
 
     def _bake(self):
         st = self._march_settings()
-        lights = lights_array(light_structs(self.scene) + self._sky(), self.device)  # baked in this order
+        lights = lights_array(self._baked_lights(), self.device)
         count = lights.shape[0] * st.shadow_grid**3
         self.baked = wp.empty(count, dtype=wp.vec3, device=self.device)
         dev.launch(bake_light_transmittance, count, [self.uploads.media.struct, lights, st, self.baked], self.device)
