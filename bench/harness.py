@@ -40,6 +40,7 @@ from tqdm import tqdm
 
 import warpvol as wv
 from warpvol import device as dev
+from .fingerprint import probe
 
 REPO = Path(__file__).resolve().parent.parent
 CACHE = Path(os.environ.get("WARPVOL_CACHE", Path.home() / ".cache" / "warpvol"))
@@ -285,11 +286,14 @@ def measure_point(sweep, params: dict, device: str | None, quick: bool) -> dict:
     with PeakMemory(device) as mem:
         row = sweep.measure(params, device, quick)
     row.pop("frame", None)
-    return {"sweep": sweep.name, "technique": sweep.technique, "params": params, **row,
-            "peak_mem_mb": round(mem.mb, 1), "device": device_name(device), "host": socket.gethostname(),
-            "warp": wp.config.version,
-            "commit": git_commit(), "paper": sweep.paper_figure(params),
-            "measured": time.strftime("%Y-%m-%d %H:%M:%S")}
+    row = {"sweep": sweep.name, "technique": sweep.technique, "params": params, **row,
+           "peak_mem_mb": round(mem.mb, 1), "device": device_name(device), "host": socket.gethostname(),
+           "warp": wp.config.version,
+           "commit": git_commit(), "paper": sweep.paper_figure(params),
+           "measured": time.strftime("%Y-%m-%d %H:%M:%S")}
+    if not quick:  # what bench report --stale renders again (bench/fingerprint.py)
+        row["probe"] = probe(row)
+    return row
 
 
 def run_sweep(sweep, device: str | None, out: Path, quick: bool = False, executor=None, progress: bool = True,

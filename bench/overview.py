@@ -22,7 +22,9 @@ Checked as it is written, so the overview cannot drift from its pages:
 * outside code (backticks, fences) the template holds no decimal figure of its own: a number
   with a decimal point is a placeholder, or it is a setting and written as code.
 
-The overview ends with a table of every page: the machine, commit and date it was measured on.
+The overview ends with a table of every page: the machine, commit and date it was measured on,
+and whether its probes still render as they did then (``results/stale.json``, written by
+``bench report --stale``: ``bench/fingerprint.py``).
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ TEMPLATE = Path(__file__).resolve().parent / "overview.md"
 PLACEHOLDER = re.compile(r"\{\{(.+?)\}\}", re.S)
 #: A decimal figure written by hand: digits, a point, digits (not inside code or a link's target).
 DECIMAL = re.compile(r"(?<![\w.])\d+\.\d+")
+STALE_FILE = "stale.json"  # bench report --stale's verdicts (bench/fingerprint.py), read for the table
 HEADER = ("<!-- Written by `python -m warpvol bench report --overview` from bench/overview.md and the pages' data; "
           "edit the template, not this file. -->")
 
@@ -162,19 +165,39 @@ def check_template(text: str) -> None:
                                 f"(read it from a page with a placeholder, or write a setting as code)")
 
 
+def _day(measured) -> str:
+    text = str(measured or "–")
+    return text if len(text) <= 10 or "…" in text else text[:10]
+
+
+def _still_true(status: dict | None) -> str:
+    if status is None:
+        return "not checked"
+    return {"current": "yes", "changed": "**no**: the images have changed since",
+            "unprobed": "unknown: measured before rows carried probes"}[status["status"]] + (
+        f" ({status['why']})" if status["status"] == "changed" else "")
+
+
 def pages_table(results: Path) -> list[str]:
     """Every page: where and when its data was measured."""
-    lines = ["| page | measured on | commit | date |", "|---|---|---|---|"]
+    status = json.loads((results / STALE_FILE).read_text()) if (results / STALE_FILE).exists() else {}
+    lines = ["| page | measured on | commit | date | still true (`bench report --stale`) |", "|---|---|---|---|---|"]
     for folder in sorted(p for p in results.iterdir() if p.is_dir() and (p / "README.md").exists()):
         for path in sorted(p for p in folder.glob("*.json") if not p.name.endswith("-quick.json")):
             doc = json.loads(path.read_text())
-            first = (doc.get("rows") or [{}])[0] if isinstance(doc, dict) else {}
-            meta = {**first, **{k: v for k, v in doc.items() if k != "rows"}} if isinstance(doc, dict) else {}
+            rows = (doc.get("rows") or [{}]) if isinstance(doc, dict) else [{}]
+            meta = {**rows[0], **{k: v for k, v in doc.items() if k != "rows"}} if isinstance(doc, dict) else {}
             if not any(k in meta for k in ("device", "commit")):
                 continue
+            dated = sorted((str(r.get("measured", "")), str(r.get("commit", ""))) for r in rows if r.get("commit"))
+            if len({c for _, c in dated}) > 1:  # rows measured at several commits: the first and the last
+                meta["commit"] = f"{dated[0][1]} … {dated[-1][1]}"
+                days = dict.fromkeys((dated[0][0][:10], dated[-1][0][:10]))
+                meta["measured"] = " … ".join(days)
             link = f"[{folder.name}]({folder.name}/README.md)" + (f" ({path.name})" if path.name != "cpu.json" else "")
+            key = folder.name if path.name == "cpu.json" else f"{folder.name}/{path.name}"
             lines.append(f"| {link} | {meta.get('device') or meta.get('machine') or '–'} | {meta.get('commit', '–')} | "
-                         f"{str(meta.get('measured', '–'))[:10]} |")
+                         f"{_day(meta.get('measured'))} | {_still_true(status.get(key))} |")
     return lines
 
 

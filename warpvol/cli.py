@@ -3,7 +3,7 @@
     python -m warpvol render SCENE --technique NAME --out OUT.exr [--out OUT.png] [--device cpu|cuda]
                              [--spp N] [--set key=value ...] [--timings] [--exposure EV]
                              [--workers N | --scheduler tcp://HOST:8786]     # the reference, on Dask
-    python -m warpvol bench --list | SWEEP [--quick] [--device ...] [--out results] | report [SWEEP ...] [--overview]
+    python -m warpvol bench --list | SWEEP [--quick] [--device ...] [--out results] | report [SWEEP ...] [--overview | --stale]
                             [--workers N | --scheduler tcp://HOST:8786]      # the points, on Dask
     python -m warpvol view SCENE [--screenshot FILE.png] [--technique NAME] [--set key=value ...]
     python -m warpvol scenes
@@ -209,8 +209,17 @@ def cmd_bench(args) -> int:
             raise ValueError("bench report --overview writes results/README.md from every page; name no sweep")
         print(f"overview: {write(args.out)}")
         return 0
-    if args.overview:
-        raise ValueError("--overview goes with `bench report` (python -m warpvol bench report --overview)")
+    if args.sweep[0] == "report" and args.stale:
+        from warpvol.bench.fingerprint import stale
+
+        if args.sweep[1:]:
+            raise ValueError("bench report --stale checks every page; name no sweep")
+        for page, status in stale(args.out).items():
+            print(f"{page}: {status['status']} ({status['why']})")
+        print(f"stale: {os.path.join(args.out, 'stale.json')}; the overview reads it (bench report --overview)")
+        return 0
+    if args.overview or args.stale:
+        raise ValueError("--overview and --stale go with `bench report` (python -m warpvol bench report --overview)")
     if args.sweep[0] == "report":
         names = args.sweep[1:] or [n for n in SWEEPS if os.path.isdir(os.path.join(args.out, n))]
         for name in names:
@@ -393,6 +402,9 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument("--quick", action="store_true", help="a reduced sweep that finishes in seconds")
     b.add_argument("--overview", action="store_true",
                    help="with `report`: write results/README.md from bench/overview.md and the pages' data")
+    b.add_argument("--stale", action="store_true",
+                   help="with `report`: render each page's probes again and list the pages whose images changed "
+                        "since they were measured (results/stale.json)")
     b.add_argument("--device", default=None, help=DEVICE_HELP)
     b.add_argument("--out", default="results", help="results folder (default: results)")
     _cluster_arguments(b, "run the sweep's points as tasks on")
