@@ -11,7 +11,10 @@ import pytest
 
 import warpvol as wv
 from warpvol.physics import airlight
+from warpvol.physics.airlight import airlight_exact
 from warpvol.techniques.particle_glow import direction_texture
+
+from .conftest import pixel_rays
 
 
 def glow_scene(lights=None, surfaces=(), origin=(0.0, 0.3, 4.0), width=24, height=18, target=(0.0, 0.3, 0.0)):
@@ -119,6 +122,29 @@ def test_march_matches_a_numpy_replica_of_equation_1(device):
     np.testing.assert_allclose(image, L, rtol=3e-3)
 
 
+def test_the_direct_sample_resolves_a_point_lights_peak(device):
+    """The direct sample (``glow = 0``, no lattice) in fog that fills the view with a point light
+    in it, camera inside: the Sun et al. 2005 airlight (by quadrature). Near the light the
+    in-scattering peaks like 1/d^2; the step's mean 1/d^2, and equal angles seen from the light
+    where a step passes beside it, keep the brightest 5% of the pixels within 2% of the closed
+    form at the default 64 steps as at 256 (measured 0.75% and 0.1%: the view transmittance's
+    step is the rest), as raymarch's step does (the same rule, shared: equal to float rounding).
+    One point a step at its midpoint missed the peak by more than 40%."""
+    cam = {"origin": [0, 0, 0], "target": [0, 0, -1], "fov_y": 60.0, "width": 24, "height": 18}
+    light = np.array([0.4, 0.2, -2.0])
+    scene = {"camera": cam, "lights": [{"type": "point", "position": light.tolist(), "intensity": 10.0}],
+             "media": [{"type": "homogeneous", "shape": "sphere", "radius": 50.0, "sigma_t": 0.3, "albedo": 1.0}]}
+    o, d = pixel_rays(cam)
+    exact = airlight_exact(o, d.reshape(-1, 3), 50.0, light, np.full(3, 10.0), 0.3, 1.0, n=8192).reshape(18, 24, 3)
+    peak = exact[..., 0] >= np.quantile(exact[..., 0], 0.95)
+    for steps in (64, 256):
+        image = wv.render(scene, "particle_glow", device=device, glow=0, multiple_scattering=0, steps=steps).image
+        err = np.abs(image - exact)[peak].mean() / exact[peak].mean()
+        assert err < 0.02, (steps, err)
+        ray = wv.render(scene, "raymarch", device=device, multiple_scattering=0, steps=steps).image
+        np.testing.assert_allclose(image, ray, rtol=1e-4)
+
+
 def test_without_glow_it_is_the_single_scattering_march(device):
     """glow = 0, a zero weight (exponent 0) and a density of 0 everywhere all leave I_o
     alone, and with no occluders that is raymarch's march over the same midpoints."""
@@ -127,7 +153,7 @@ def test_without_glow_it_is_the_single_scattering_march(device):
     for settings in ({"exponent": 0.0}, {"mu": 50.0}):
         np.testing.assert_array_equal(wv.Renderer(scene, "particle_glow", multiple_scattering=0, device=device, **settings).render().image,
                                       base)
-    ray = wv.Renderer(scene, "raymarch", multiple_scattering=0, device=device, steps=128).render().image
+    ray = wv.Renderer(scene, "raymarch", multiple_scattering=0, device=device, steps=64).render().image
     np.testing.assert_allclose(base, ray, rtol=2e-4, atol=1e-6)
     glowing = wv.Renderer(scene, "particle_glow", multiple_scattering=0, device=device).render().image
     assert glowing.mean() > 1.05 * base.mean()  # the glow adds light

@@ -17,10 +17,11 @@ import warp as wp
 from .geometry.intersect import ray_box
 from .geometry.mesh import Surfaces, occluded, surface_hit
 from .geometry.shadowmap import ShadowedLights, shadow_visibility, texel_world_size
-from .media.volume import Media, exact_media, exact_optical_depth, grid_sigma_t_at, transmittance_estimate
+from .media.volume import Media, exact_media, exact_optical_depth, grid_sigma_t_at, in_scatter_at, transmittance_estimate
 from .physics.brdf import Material, brdf_eval
 from .physics.constants import INF, PI, RAY_EPS, STREAM
-from .physics.lights import Emitter, light_incident
+from .physics.lights import (Emitter, angle_point, angle_samples, angle_share, light_incident, step_angle,
+                             step_mean_irradiance)
 from .physics.transmittance import transmittance_rgb
 
 
@@ -102,6 +103,32 @@ def light_arriving(m: Media, sl: ShadowedLights, l: int, x: wp.vec3, n: wp.vec3,
     if v <= 0.0:
         return wi, wp.vec3(0.0), wp.vec3(0.0)
     return wi, e * v, marched_optical_depth(m, x, wi, 0.0, dist, shadow_steps)
+
+
+@wp.func
+def step_in_scatter_through_maps(m: Media, sl: ShadowedLights, l: int, o: wp.vec3, d: wp.vec3, t0: float, dt: float,
+                                 shadow_steps: int) -> wp.vec3:
+    """Light l's single scattering toward -d, per unit length, over the march step [t0, t0 + dt]
+    of o + t d, past the surfaces by its shadow map and through the media (``light_arriving``):
+    at the step's midpoint with the step's mean 1/d^2, or, where the step subtends more than
+    ANGLE_STEP at a point or spot light, at equiangular points (``physics.lights.step_angle``),
+    each with its own phase function, shadow and falloff, as raymarch's step."""
+    light = sl.lights[l]
+    tc, h, phi = step_angle(light, o, d, t0, t0 + dt)
+    na = angle_samples(phi)  # 1 but beside a point or spot light
+    acc = wp.vec3(0.0)
+    for j in range(na):
+        t = wp.where(na > 1, angle_point(t0, tc, h, phi, j, na), t0 + 0.5 * dt)
+        x = o + t * d
+        wi, e, tau = light_arriving(m, sl, l, x, wp.vec3(0.0), shadow_steps)
+        if e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0:
+            dist = wp.length(light.position - x)
+            if na > 1:
+                e = angle_share(light, e, dist, h, phi, na, dt)
+            else:
+                e = step_mean_irradiance(light, e, dist, o, d, t0, t0 + dt)
+            acc += wp.cw_mul(wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e), transmittance_rgb(tau))
+    return acc
 
 
 @wp.func

@@ -9,7 +9,10 @@ setting defaulting to the paper's value. Per step i at R_i (section 4, equation 
 
 * ``I_o``, the direct sample: the light scattered at R_i toward the eye, sigma_s p E T V,
   T the media's transmittance to the light, V the light's shadow map (step 1 of the paper's
-  list; the shadow maps ``geometry/shadowmap.py`` builds for light_shafts too).
+  list; the shadow maps ``geometry/shadowmap.py`` builds for light_shafts too). As in raymarch,
+  a point light's 1/d^2 is averaged over the step, and a step beside the light is split into
+  equal angles seen from it (``shading.step_in_scatter_through_maps``): the lamp's core does not
+  depend on the number of steps (results/defaults).
 * ``d`` (d-bar), the particle density of R_i's unit cell: a texture of ``texture_res``^3
   cells of side ``cell`` that tiles space, each d = CDF(x | mu, sigma) of a value x drawn
   once per cell, uniformly in (0, ``density_x``]. Equation 2 prints a *normal* CDF; the
@@ -68,7 +71,7 @@ from ..geometry.intersect import ray_box
 from ..geometry.mesh import Surfaces
 from ..geometry.raster import RasterView, pixel_ray
 from ..geometry.shadowmap import ShadowedLights, shadow_visibility
-from ..media.volume import Media, in_scatter_at, scattering_at, sigma_t_at
+from ..media.volume import Media, scattering_at, sigma_t_at
 from ..physics.airlight import g_table, surface_radiance
 from ..physics.constants import PI
 from ..physics.lights import DIRECTIONAL, SPOT, ball_mean_inverse_square, spot_falloff
@@ -79,14 +82,15 @@ from ..scattering import SETTINGS as MS_SETTINGS
 from ..scattering import MultipleScattering, ScatteredLight, scattered_light, scattered_on_surface
 from ..scattering import check_settings as check_ms_settings
 from ..scattering import leaves_out as ms_leaves_out
-from ..shading import camera_segment, light_arriving, surface_through_maps
+from ..shading import camera_segment, step_in_scatter_through_maps, surface_through_maps
 from ..upload import EXTINCTION_BIAS, EXTINCTION_SETTINGS, SceneUploads, pinhole, shadowed_lights
 
 dev.kernel_module(__name__)
 
 NAME = "particle_glow"
 SETTINGS = {
-    "steps": Setting(128, 1, 1 << 16, "march steps along each view ray's media segment"),
+    "steps": Setting(64, 1, 1 << 16, "march steps along each view ray's media segment (a step beside a point "
+                                     "light is split into equal angles seen from it)"),
     "shadow_map_res": Setting(256, 4, 8192, "texels per side of each shadow map (cube maps: per face)"),
     "depth_bias": Setting(0.02, 0.0, 1.0e3, "shadow-map depth bias, scene units"),
     "shadow_steps": Setting(32, 1, 1 << 16, "steps toward a light through grid media (the others: closed form)"),
@@ -216,10 +220,8 @@ def march_glow(offset: int, cam: RasterView, m: Media, s: Surfaces, sl: Shadowed
             sig = sigma_t_at(m, x, False)
             if sig[0] > 0.0 or sig[1] > 0.0 or sig[2] > 0.0:
                 src = wp.vec3(0.0)
-                for l in range(sl.lights.shape[0]):  # I_o: the direct sample
-                    wi, e, tau = light_arriving(m, sl, l, x, wp.vec3(0.0), gs.shadow_steps)
-                    if e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0:
-                        src += wp.cw_mul(wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e), transmittance_rgb(tau))
+                for l in range(sl.lights.shape[0]):  # I_o: the direct sample, over the step
+                    src += step_in_scatter_through_maps(m, sl, l, o, d, ta + float(k) * dt, dt, gs.shadow_steps)
                 if ms.lat.n > 0:  # the light scattered more than once, solved (in place of the glow)
                     src += scattered_light(ms, scattering_at(m, x), x)
                 elif gs.glow != 0 and sl.lights.shape[0] > 0:  # I_s: the nearby particle's light
