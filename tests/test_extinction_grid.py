@@ -1,12 +1,12 @@
 """What a march pays per Gaussian: RBF optical depth toward the lights in closed form, and the
-extinction baked into a grid where many Gaussians overlap (warpvol.upload.extinction_cells)."""
+extinction baked into a grid (warpvol.upload.extinction_cells)."""
 
 import numpy as np
 import pytest
 
 import warpvol as wv
 from warpvol.scene import scene_from_dict
-from warpvol.upload import BAKE_OVERLAP, extinction_cells, gaussians_in_reach
+from warpvol.upload import BAKE_CELL, extinction_cells
 
 
 def fog(count, radius, width=16, height=12, seed=3):
@@ -32,16 +32,16 @@ def test_shadow_rays_take_the_closed_form(device):
     np.testing.assert_allclose(one, many, rtol=1e-4, atol=1e-6 * many.max())
 
 
-def test_the_choice_follows_the_overlap(device):
-    """A few Gaussians are summed where they are (a lookup reads fewer than a grid's 8 samples);
-    many overlapping ones are baked, a cell half their radius; the choice is in diagnostics()
+def test_the_choice_follows_the_radius(device):
+    """Every RBF medium is baked, a few Gaussians as many (even one costs a march more than the
+    grid's 8 samples), a cell a quarter of the smallest radius; the choice is in diagnostics()
     and a setting overrides it."""
     few, many = scene_from_dict(fog(4, 0.15)), scene_from_dict(fog(400, 0.1))
-    assert gaussians_in_reach(few.media[0]) <= BAKE_OVERLAP < gaussians_in_reach(many.media[0])
-    assert extinction_cells(few.media[0], -1) == 0
+    for scene, radius in ((few, 0.15), (many, 0.1)):
+        centers = np.asarray(scene.media[0].centers)
+        extent = np.ptp(centers, axis=0).max() + 2 * 5 * radius  # the centres' spread, the cut-off on both sides
+        assert extinction_cells(scene.media[0], -1) == pytest.approx(extent / (BAKE_CELL * radius), abs=2)
     cells = extinction_cells(many.media[0], -1)
-    extent = 1.4 + 2 * 5 * 0.1  # the centres' spread and the cut-off on both sides
-    assert cells == pytest.approx(extent / 0.05, abs=2)
     r = march(fog(400, 0.1, 8, 6), device)
     r.render()
     assert r.diagnostics()["extinction_grid"] == [cells]

@@ -142,6 +142,8 @@ def render_to_target(scene, technique: str, device, progress: bool, target: floa
                 continue
             if b.when == "rbf" and not any(m.type == "rbf" for m in scene.media):
                 continue
+            if b.when == "heterogeneous" and all(m.type == "homogeneous" for m in scene.media):
+                continue
             hi = cls.SETTINGS[b.setting].hi if b.top is None else b.top
             limit = b.exact if b.exact is not None else min(value * b.factor, hi)
             if b.exact is None and value == 0:  # off (0: left out)

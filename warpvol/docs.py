@@ -47,7 +47,8 @@ def quality_row(name: str) -> tuple[str, str, str]:
     biases = []
     for b in q.biases:
         limit = f"= {b.exact}" if b.exact is not None else f"x {b.factor} (order {b.order:g})"
-        when = {"sky": " with a sky", "multiple": " with the term on", "rbf": " with an RBF medium"}
+        when = {"sky": " with a sky", "multiple": " with the term on", "rbf": " with an RBF medium",
+                "heterogeneous": " with a medium not homogeneous"}
         biases.append(f"`{b.setting}` {limit}" + when.get(b.when, ""))
     held = ", ".join(f"`{k}` = {v}" for k, v in getattr(cls, "QUALITY_HOLD", {}).items())
     seed = getattr(cls, "QUALITY_SEED", None)

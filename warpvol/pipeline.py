@@ -74,7 +74,8 @@ class Bias:
     against ``factor`` times the value, the difference scaled to the whole bias as an error
     of order ``order`` (|x(v) - x(f v)| / (1 - f^-order)). ``when``: the scene part that must
     be present for the setting to matter (``"sky"``: a non-black background; ``"multiple"``:
-    the multiple-scattering term on; ``"rbf"``: an RBF medium), or None. ``top``: the most
+    the multiple-scattering term on; ``"rbf"``: an RBF medium; ``"heterogeneous"``: a medium not
+    homogeneous), or None. ``top``: the most
     ``target_error`` takes the setting to (None: its range's top), where its cost rises
     steeply (the lattice's n^4 D)."""
 

@@ -9,12 +9,16 @@ cosine's integral over the hemisphere being pi). Each technique sums its own T_k
 
 Transmittance to a light is either estimated without bias (``march_steps`` = 0: exact for
 media with a closed form, ratio tracking for grids) or marched deterministically with
-``march_steps`` midpoint steps through the grids (homogeneous, particle and RBF media exact).
+``march_steps`` midpoint steps through the grids (homogeneous, particle and RBF media exact),
+or read from a lattice of the optical depth toward each light baked once over the heterogeneous
+media (``bake_light_depth``, the froxel-style shortcut of real-time fog: a lookup a step instead
+of a march, shadow edges blurred to a cell).
 """
 
 import warp as wp
 
-from .geometry.intersect import ray_box
+from . import device as dev
+from .geometry.intersect import inside_box, ray_box
 from .geometry.mesh import Surfaces, occluded, surface_hit
 from .geometry.shadowmap import ShadowedLights, shadow_visibility, texel_world_size
 from .media.volume import Media, exact_media, exact_optical_depth, grid_sigma_t_at, in_scatter_at, transmittance_estimate
@@ -22,7 +26,10 @@ from .physics.brdf import Material, brdf_eval
 from .physics.constants import INF, PI, RAY_EPS, STREAM
 from .physics.lights import (Emitter, angle_point, angle_samples, angle_share, light_incident, step_angle,
                              step_mean_irradiance)
+from .media.grid import lattice_trilinear_vec3
 from .physics.transmittance import transmittance_rgb
+
+dev.kernel_module(__name__)
 
 
 @wp.func
@@ -102,7 +109,48 @@ def light_arriving(m: Media, sl: ShadowedLights, l: int, x: wp.vec3, n: wp.vec3,
     v = shadow_visibility(sl.maps[l], sl.depth, p)
     if v <= 0.0:
         return wi, wp.vec3(0.0), wp.vec3(0.0)
+    if sl.baked_n > 0 and inside_box(x, sl.baked_lo, sl.baked_hi):
+        return wi, e * v, baked_light_depth(sl.baked, l, sl.baked_n, sl.baked_lo, sl.baked_hi, x)
     return wi, e * v, marched_optical_depth(m, x, wi, 0.0, dist, shadow_steps)
+
+
+@wp.kernel
+def bake_light_depth(offset: int, m: Media, lights: wp.array(dtype=Emitter), n: int, lo: wp.vec3, hi: wp.vec3,
+                     steps: int, out: wp.array(dtype=wp.vec3)):
+    """The media's optical depth from each node of an n^3 lattice over [lo, hi] to each light
+    (marched with ``steps`` steps through grids, closed form otherwise; no surfaces): light l's
+    nodes from l n^3, x fastest."""
+    tid = wp.tid() + offset
+    cell = tid % (n * n * n)
+    l = tid / (n * n * n)
+    ijk = wp.vec3(float(cell % n), float((cell / n) % n), float(cell / (n * n)))
+    x = lo + wp.cw_mul(hi - lo, ijk / float(n - 1))
+    wi, dist, e = light_incident(lights[l], x)
+    out[tid] = marched_optical_depth(m, x, wi, 0.0, dist, steps)
+
+
+@wp.func
+def baked_light_depth(baked: wp.array(dtype=wp.vec3), l: int, n: int, lo: wp.vec3, hi: wp.vec3,
+                      x: wp.vec3) -> wp.vec3:
+    """Light l's optical depth at x, trilinear in the lattice ``bake_light_depth`` filled."""
+    return lattice_trilinear_vec3(baked, l * n * n * n, 1, n, lo, hi, x)
+
+
+def light_depth_volume(m: Media, lights: wp.array, n: int, steps: int, device) -> wp.array:
+    """``bake_light_depth`` over the media's heterogeneous box for every light of ``lights``."""
+    out = wp.empty(max(1, lights.shape[0] * n**3), dtype=wp.vec3, device=device)
+    if lights.shape[0]:
+        dev.launch(bake_light_depth, lights.shape[0] * n**3, [m, lights, n, m.het_min, m.het_max, steps, out], device)
+    return out
+
+
+def with_light_depth(sl: ShadowedLights, m: Media, baked: wp.array | None, n: int, device) -> ShadowedLights:
+    """``sl`` reading its lights' optical depth from ``baked`` (``light_depth_volume`` with n^3
+    nodes), or marching it where ``baked`` is None."""
+    sl.baked_n = n if baked is not None else 0
+    sl.baked_lo, sl.baked_hi = m.het_min, m.het_max
+    sl.baked = baked if baked is not None else wp.zeros(1, dtype=wp.vec3, device=device)
+    return sl
 
 
 @wp.func

@@ -130,7 +130,23 @@ def shadowed_lights(scene: Scene, lights: wp.array, surfaces: Surfaces, res: int
     sl.maps = wp.array(structs or [ShadowMap()], dtype=ShadowMap, device=device)
     sl.depth = (shadow_map_depths(structs, device, surfaces=surfaces) if occluders
                 else wp.full(1, INF, dtype=float, device=device))
+    sl.baked_n, sl.baked = 0, wp.zeros(1, dtype=wp.vec3, device=device)  # marched (shading.with_light_depth)
     return sl
+
+
+#: The light volume a marcher may read instead of marching to the lights (``shading.bake_light_depth``).
+LIGHT_VOLUME_SETTINGS = {
+    "shadow_grid": Setting(32, 0, 512, "nodes per axis of the lattice the media's optical depth toward each light is "
+                                       "baked on, over heterogeneous media (a lookup a step instead of a march; shadow "
+                                       "edges blurred to a cell); 0 = marched at every step"),
+}
+LIGHT_VOLUME_BIAS = Bias("shadow_grid", exact=0, when="heterogeneous")
+
+
+def bakes_light_depth(scene: Scene, n: int) -> bool:
+    """Whether a light volume of n nodes a side pays: some light, and a medium whose optical
+    depth is marched or walked (not homogeneous)."""
+    return n > 0 and bool(scene.lights) and any(m.type != "homogeneous" for m in scene.media)
 
 
 def check_particle_scene(technique: str, scene: Scene) -> None:
@@ -266,36 +282,27 @@ EXTINCTION_SETTINGS = {
     "extinction_grid": Setting(-1, -1, 512, "cells along the longest side of the grid an RBF medium's extinction is "
                                              "baked into, so a march reads 8 samples where it would sum every Gaussian "
                                              "in reach; 0: the Gaussians summed at every lookup (exact); -1: chosen from "
-                                             "the medium (baked where more than 8 Gaussians reach a point on average, a "
-                                             "cell half the smallest Gaussian's radius)"),
+                                             "the medium (a cell a quarter of the smallest Gaussian's radius)"),
 }
 EXTINCTION_BIAS = Bias("extinction_grid", exact=0, when="rbf")
-BAKE_OVERLAP = 8  # Gaussians in reach of a point above which a trilinear grid (8 samples) is cheaper
+#: A cell of the baked grid, in radii of the smallest Gaussian: the trilinear error goes as its
+#: square (tests/test_extinction_grid.py). Even one Gaussian costs a march more than the grid's 8
+#: samples do (its hash-grid cell and its exp at each of three lookups a step): rbf-single and
+#: rbf-cornell (1 and 16 Gaussians) march 2.6x faster baked, at the same error (results/defaults).
+BAKE_CELL = 0.25
 BAKE_MAX = 256  # cells along the longest side the choice from the medium goes up to
-
-
-def gaussians_in_reach(m: RBFMedium) -> float:
-    """How many of an RBF medium's Gaussians reach a point of its bounds on average: the sum of
-    their cut-off balls' volumes over the bounds' volume (what a density lookup sums)."""
-    radii, _ = m.gaussians()
-    lo, hi = medium_bounds(m) or (np.zeros(3), np.zeros(3))
-    volume = float(np.prod(np.maximum(hi - lo, 1e-9)))
-    return float(np.sum(4.0 / 3.0 * np.pi * (float(CUTOFF) * radii.astype(np.float64)) ** 3)) / volume
 
 
 def extinction_cells(m, setting: int) -> int:
     """Cells along the longest side of the grid a march reads medium ``m`` from (0: the medium
-    itself): ``setting`` for an RBF medium, or with -1 the choice from the medium
-    (``gaussians_in_reach`` over ``BAKE_OVERLAP``: a cell half its smallest radius, at most
-    ``BAKE_MAX``); 0 for every other kind."""
+    itself): ``setting`` for an RBF medium, or with -1 the choice from the medium (a cell
+    BAKE_CELL of its smallest radius, at most ``BAKE_MAX``); 0 for every other kind."""
     if not isinstance(m, RBFMedium) or not len(m.centers) or setting == 0:
         return 0
     if setting > 0:
         return setting
-    if gaussians_in_reach(m) <= BAKE_OVERLAP:
-        return 0
     lo, hi = medium_bounds(m)
-    return int(min(BAKE_MAX, math.ceil(float(np.max(hi - lo)) / (0.5 * float(m.gaussians()[0].min())))))
+    return int(min(BAKE_MAX, math.ceil(float(np.max(hi - lo)) / (BAKE_CELL * float(m.gaussians()[0].min())))))
 
 
 def baked_rbf_grid(m: RBFMedium, lo: np.ndarray, hi: np.ndarray, cells: int, device) -> GridBuffers:

@@ -52,10 +52,16 @@ class ShadowMap:
 
 @wp.struct
 class ShadowedLights:
-    """Lights and their shadow maps (``shading.light_arriving`` reads them)."""
+    """Lights and their shadow maps (``shading.light_arriving`` reads them), and optionally the
+    media's optical depth toward each light baked on a lattice over the heterogeneous media
+    (``shading.bake_light_depth``; ``baked_n`` = 0: marched instead)."""
     lights: wp.array(dtype=Emitter)
     maps: wp.array(dtype=ShadowMap)  # one per light
     depth: wp.array(dtype=float)  # the maps' texels
+    baked: wp.array(dtype=wp.vec3)  # per light, baked_n^3 nodes of optical depth (x fastest)
+    baked_n: int
+    baked_lo: wp.vec3
+    baked_hi: wp.vec3
 
 
 @wp.func

@@ -116,9 +116,9 @@ from ..scattering import SETTINGS as MS_SETTINGS
 from ..scattering import MultipleScattering, ScatteredLight, scattered_light, scattered_on_surface
 from ..scattering import check_settings as check_ms_settings
 from ..scattering import leaves_out as ms_leaves_out
-from ..shading import light_arriving, marched_optical_depth, surface_through_maps
-from ..upload import (EXTINCTION_BIAS, EXTINCTION_SETTINGS, SceneUploads, pinhole, scene_bounds,
-                      shadow_map_structs)
+from ..shading import light_arriving, light_depth_volume, marched_optical_depth, surface_through_maps, with_light_depth
+from ..upload import (EXTINCTION_BIAS, EXTINCTION_SETTINGS, LIGHT_VOLUME_BIAS, LIGHT_VOLUME_SETTINGS, SceneUploads,
+                      bakes_light_depth, pinhole, scene_bounds, shadow_map_structs)
 
 dev.kernel_module(__name__)
 
@@ -146,6 +146,7 @@ SETTINGS = {
                           "paper's shared samples throughout"),
     **MS_SETTINGS,
     **EXTINCTION_SETTINGS,
+    **LIGHT_VOLUME_SETTINGS,
 }
 
 
@@ -451,7 +452,7 @@ class LightShafts(Technique):
     SETTINGS = SETTINGS
     QUALITY = Quality(knob="steps", start=16, top=4096, order=1, tied={"shadow_steps": 0.5},
                       biases=(Bias("block", exact=1), Bias("shadow_map_res", factor=4, order=1), *MS_BIASES,
-                              EXTINCTION_BIAS))
+                              EXTINCTION_BIAS, LIGHT_VOLUME_BIAS))
     LEAVES_OUT = ()
 
     def __init__(self, scene, device, settings, progress=False):
@@ -460,6 +461,7 @@ class LightShafts(Technique):
         self.multiple = MultipleScattering(self, lambda: self.uploads.surfaces, lambda: self.uploads.lights,
                                            lambda: self.uploads.media.struct)
         self.maps = None
+        self.light_depth = None  # the lights' optical depth on a lattice (stage light_volume)
         self.depth = wp.full(1, INF, dtype=float, device=device)
         self._no_keys = wp.full(1, NO_HIT, dtype=wp.int64, device=device)  # "ray cast instead"
         self._no_index = wp.full(1, -1, dtype=int, device=device)
@@ -496,13 +498,16 @@ class LightShafts(Technique):
             Stage("visible", self._visible, reads=("camera",), settings=("raster", "raster_tiles"),
                   after=("medium", "surfaces")),
             *self.multiple.stages(after=("medium", "surfaces", "lights")),
+            Stage("light_volume", self._bake, reads=("medium", "lights"), settings=("shadow_grid", "shadow_steps"),
+                  after=("medium", "lights"), needed=self._bakes()),
             Stage("surface", self._surface, reads=("camera", "background"),
-                  settings=("shadow_steps", "steps", "multiple_scattering"),
-                  after=("medium", "surfaces", "lights", "shadow_maps", "visible", "multiple_view"), needed=occluders),
+                  settings=("shadow_steps", "steps", "multiple_scattering", "shadow_grid"),
+                  after=("medium", "surfaces", "lights", "shadow_maps", "visible", "multiple_view", "light_volume"),
+                  needed=occluders),
             Stage("march", self._march, reads=("camera", "background"),
                   settings=("steps", "block", "jitter", "scattering", "shadow_steps", "seed", "spacing",
-                            "multiple_scattering", "light_ball"),
-                  after=("medium", "lights", "shadow_maps", "visible", "surface", "multiple_view")),
+                            "multiple_scattering", "light_ball", "shadow_grid"),
+                  after=("medium", "lights", "shadow_maps", "visible", "surface", "multiple_view", "light_volume")),
             Stage("block_rows", self._block_rows, settings=("block",), after=("march",),
                   needed=interleaved and not depth_aware),
             Stage("block_cols", self._block_cols, settings=("block",), after=("block_rows",),
@@ -547,10 +552,18 @@ class LightShafts(Technique):
             self.maps = wp.array(self._map_structs(occluders=False) or [ShadowMap()], dtype=ShadowMap,
                                  device=self.device)
 
+    def _bakes(self) -> bool:
+        return bakes_light_depth(self.scene, self.settings["shadow_grid"])
+
+    def _bake(self):
+        self.light_depth = light_depth_volume(self.uploads.media.struct, self.uploads.lights,
+                                              self.settings["shadow_grid"], self.settings["shadow_steps"], self.device)
+
     def _shadowed_lights(self) -> ShadowedLights:
         sl = ShadowedLights()
         sl.lights, sl.maps, sl.depth = self.uploads.lights, self.maps, self.depth
-        return sl
+        return with_light_depth(sl, self.uploads.media.struct, self.light_depth if self._bakes() else None,
+                                self.settings["shadow_grid"], self.device)
 
     def _scratch(self, name: str, n: int, dtype, fill=None):
         """An intermediate array kept from frame to frame (allocating and first touching ~6 MB per

@@ -82,8 +82,10 @@ from ..scattering import SETTINGS as MS_SETTINGS
 from ..scattering import MultipleScattering, ScatteredLight, scattered_light, scattered_on_surface
 from ..scattering import check_settings as check_ms_settings
 from ..scattering import leaves_out as ms_leaves_out
-from ..shading import camera_segment, step_in_scatter_through_maps, surface_through_maps
-from ..upload import EXTINCTION_BIAS, EXTINCTION_SETTINGS, SceneUploads, pinhole, shadowed_lights
+from ..shading import (camera_segment, light_depth_volume, step_in_scatter_through_maps, surface_through_maps,
+                       with_light_depth)
+from ..upload import (EXTINCTION_BIAS, EXTINCTION_SETTINGS, LIGHT_VOLUME_BIAS, LIGHT_VOLUME_SETTINGS, SceneUploads,
+                      bakes_light_depth, pinhole, shadowed_lights)
 
 dev.kernel_module(__name__)
 
@@ -117,6 +119,7 @@ SETTINGS = {
     "shininess": Setting(20.0, 1.0, 1.0e4, "Phong exponent n of the specular term"),
     **MS_SETTINGS,
     **EXTINCTION_SETTINGS,
+    **LIGHT_VOLUME_SETTINGS,
 }
 
 
@@ -277,7 +280,8 @@ class ParticleGlow(Technique):
     NAME = NAME
     SETTINGS = SETTINGS
     QUALITY = Quality(knob="steps", start=8, top=8192, order=2, tied={"shadow_steps": 0.25},
-                      biases=(Bias("shadow_map_res", factor=4, order=1), *MS_BIASES, EXTINCTION_BIAS))
+                      biases=(Bias("shadow_map_res", factor=4, order=1), *MS_BIASES, EXTINCTION_BIAS,
+                              LIGHT_VOLUME_BIAS))
     LEAVES_OUT = ()
 
     def __init__(self, scene, device, settings, progress=False):
@@ -288,6 +292,7 @@ class ParticleGlow(Technique):
         self.density = self.weight = self.direction = None
         self.g0 = self.gn = None
         self.sl: ShadowedLights | None = None
+        self.light_depth = None  # the lights' optical depth on a lattice (stage light_volume)
         self.image = None
 
     def check_settings(self, settings):
@@ -306,10 +311,20 @@ class ParticleGlow(Technique):
             Stage("tables", self._tables, settings=("specular", "shininess")),
             Stage("shadow_maps", self._shadow_maps, reads=("lights",), settings=("shadow_map_res", "depth_bias"),
                   after=("surfaces", "lights")),
+            Stage("light_volume", self._bake, reads=("medium", "lights"), settings=("shadow_grid", "shadow_steps"),
+                  after=("medium", "lights"), needed=self._bakes()),
             Stage("march", self._march, reads=("camera", "background"),
-                  settings=("steps", "shadow_steps", "glow", "k_c", "c1", "c2", "cell", "anchor", "multiple_scattering"),
-                  after=("medium", "textures", "tables", "shadow_maps", "multiple_view")),
+                  settings=("steps", "shadow_steps", "glow", "k_c", "c1", "c2", "cell", "anchor", "multiple_scattering",
+                            "shadow_grid"),
+                  after=("medium", "textures", "tables", "shadow_maps", "multiple_view", "light_volume")),
         ]
+
+    def _bakes(self) -> bool:
+        return bakes_light_depth(self.scene, self.settings["shadow_grid"])
+
+    def _bake(self):
+        self.light_depth = light_depth_volume(self.uploads.media.struct, self.uploads.lights,
+                                              self.settings["shadow_grid"], self.settings["shadow_steps"], self.device)
 
     def _textures(self):
         s = self.settings
@@ -348,7 +363,9 @@ class ParticleGlow(Technique):
         scene, u = self.scene, self.uploads
         npix = scene.camera.width * scene.camera.height
         self.image = wp.empty(npix, dtype=wp.vec3, device=self.device)
-        dev.launch(march_glow, npix, [camera_view(pinhole(scene.camera)), u.media.struct, u.surfaces, self.sl,
+        sl = with_light_depth(self.sl, u.media.struct, self.light_depth if self._bakes() else None,
+                              self.settings["shadow_grid"], self.device)
+        dev.launch(march_glow, npix, [camera_view(pinhole(scene.camera)), u.media.struct, u.surfaces, sl,
                                       self.glow_struct(), wp.vec3(*scene.background), self.multiple.struct(),
                                       self.image], self.device)
 

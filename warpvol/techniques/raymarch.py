@@ -23,9 +23,10 @@ the directions grow, at the price of a march toward each direction at every step
 the lattice removes; results/defaults). Each sky direction's transmittance is marched with an
 eighth of ``shadow_steps``.
 
-With ``shadow_grid`` = n > 0, the transmittance from each light is baked once on an n^3
-lattice over the heterogeneous media (stage ``light_volume``, which reads the medium and
-the lights only) and looked up trilinearly while marching, the froxel-style shortcut of
+With ``shadow_grid`` = n > 0 (the default 32), the optical depth toward each light is baked once
+on an n^3 lattice over the heterogeneous media (stage ``light_volume``, which reads the medium and
+the lights only; ``shading.bake_light_depth``, shared with light_shafts and particle_glow) and
+looked up trilinearly while marching, the froxel-style shortcut of
 real-time fog: the march then costs one lookup per light per step instead of
 ``shadow_steps`` density samples, at the price of blurring shadow edges to a cell.
 Surfaces still occlude through a shadow ray.
@@ -52,7 +53,6 @@ from ..geometry.camera import camera_view
 from ..geometry.intersect import inside_box
 from ..geometry.mesh import Surfaces, occluded
 from ..geometry.raster import RasterView, view_ray
-from ..media.grid import lattice_trilinear_vec3
 from ..media.volume import Media, in_scatter_at, scattering_at, sigma_t_at
 from ..physics.constants import INF, RAY_EPS
 from ..physics.lights import (Emitter, angle_point, angle_samples, angle_share, light_incident, step_angle,
@@ -64,10 +64,10 @@ from ..scattering import SETTINGS as MS_SETTINGS
 from ..scattering import MultipleScattering, ScatteredLight, field_reaches, scattered_light, scattered_on_surface
 from ..scattering import check_settings as check_ms_settings
 from ..scattering import leaves_out as ms_leaves_out
-from ..shading import (camera_segment, light_transmittance, marched_optical_depth, reflected, sky_reflected,
-                       sky_scattered, surface_direct)
-from ..upload import (EXTINCTION_BIAS, EXTINCTION_SETTINGS, SceneUploads, light_structs, lights_array, pinhole,
-                      sky_light_structs)
+from ..shading import (baked_light_depth, camera_segment, light_depth_volume, light_transmittance, reflected,
+                       sky_reflected, sky_scattered, surface_direct)
+from ..upload import (EXTINCTION_BIAS, EXTINCTION_SETTINGS, LIGHT_VOLUME_BIAS, LIGHT_VOLUME_SETTINGS, SceneUploads,
+                      light_structs, lights_array, pinhole, sky_light_structs)
 
 dev.kernel_module(__name__)
 
@@ -76,14 +76,13 @@ SETTINGS = {
     "steps": Setting(64, 1, 1 << 20, "steps along each camera ray (used when step_length = 0)"),
     "step_length": Setting(0.0, 0.0, 1.0e6, "step length in scene units; 0 = use steps"),
     "shadow_steps": Setting(32, 1, 1 << 20, "steps along each ray toward a light through grid media (the others: closed form)"),
-    "shadow_grid": Setting(32, 0, 512, "nodes per axis of the baked light-transmittance volume over heterogeneous "
-                                       "media; 0 = march to the lights at every step"),
     "sky_samples": Setting(8, 0, 4096, "directions the sky's light (the background) is gathered from, each marched "
                                        "like a light: on surfaces beyond the multiple-scattering lattice's field, and "
                                        "at every step too when the lattice is off (multiple_scattering = 0); 0: left "
                                        "out there"),
     **MS_SETTINGS,
     **EXTINCTION_SETTINGS,
+    **LIGHT_VOLUME_SETTINGS,
 }
 
 
@@ -108,20 +107,6 @@ class Sky:
     radiance: wp.vec3
 
 
-@wp.kernel
-def bake_light_transmittance(offset: int, m: Media, lights: wp.array(dtype=Emitter), st: MarchSettings,
-                             out: wp.array(dtype=wp.vec3)):
-    """Transmittance through the media from each light to each lattice node (no surfaces)."""
-    tid = wp.tid() + offset
-    n = st.shadow_grid
-    cell = tid % (n * n * n)
-    l = tid / (n * n * n)
-    ijk = wp.vec3(float(cell % n), float((cell / n) % n), float(cell / (n * n)))
-    x = st.grid_lo + wp.cw_mul(st.grid_hi - st.grid_lo, ijk / float(n - 1))
-    wi, dist, e = light_incident(lights[l], x)
-    out[tid] = transmittance_rgb(marched_optical_depth(m, x, wi, 0.0, dist, st.shadow_steps))
-
-
 @wp.func
 def light_at(m: Media, s: Surfaces, l: int, x: wp.vec3, wi: wp.vec3, dist: float, st: MarchSettings,
              baked: wp.array(dtype=wp.vec3), steps: int) -> wp.vec3:
@@ -131,8 +116,7 @@ def light_at(m: Media, s: Surfaces, l: int, x: wp.vec3, wi: wp.vec3, dist: float
     if st.shadow_grid > 0 and l < st.baked_lights and inside_box(x, st.grid_lo, st.grid_hi):
         if occluded(s, x, wi, dist):
             return wp.vec3(0.0)
-        g = st.shadow_grid
-        return lattice_trilinear_vec3(baked, l * g * g * g, 1, g, st.grid_lo, st.grid_hi, x)
+        return transmittance_rgb(baked_light_depth(baked, l, st.shadow_grid, st.grid_lo, st.grid_hi, x))
     return light_transmittance(m, s, x, wi, dist, 0, rng, steps)
 
 
@@ -245,7 +229,7 @@ class Raymarch(Technique):
     NAME = NAME
     SETTINGS = SETTINGS
     QUALITY = Quality(knob="steps", start=8, top=1024, order=2, tied={"shadow_steps": 1},
-                      biases=(Bias("sky_samples", factor=4, order=1, when="sky"), Bias("shadow_grid", exact=0),
+                      biases=(Bias("sky_samples", factor=4, order=1, when="sky"), LIGHT_VOLUME_BIAS,
                               *MS_BIASES, EXTINCTION_BIAS))
     LEAVES_OUT = ()
 
@@ -314,9 +298,7 @@ class Raymarch(Technique):
     def _bake(self):
         st = self._march_settings()
         lights = lights_array(self._baked_lights(), self.device)
-        count = lights.shape[0] * st.shadow_grid**3
-        self.baked = wp.empty(count, dtype=wp.vec3, device=self.device)
-        dev.launch(bake_light_transmittance, count, [self.uploads.media.struct, lights, st, self.baked], self.device)
+        self.baked = light_depth_volume(self.uploads.media.struct, lights, st.shadow_grid, st.shadow_steps, self.device)
 
     def _march(self):
         scene, u = self.scene, self.uploads
