@@ -23,7 +23,8 @@ from warpvol import device
 
 
 #: The kernel modules besides the techniques' (the lattice, the media's and the rasteriser's).
-SHARED = ("scattering", "media.grid", "media.lightpass", "media.volume", "geometry.raster", "geometry.shadowmap")
+SHARED = ("scattering", "shading", "media.grid", "media.lightpass", "media.volume", "geometry.raster",
+          "geometry.shadowmap")
 
 
 def main(argv=None) -> int:

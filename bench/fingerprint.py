@@ -99,6 +99,8 @@ def page_status(path: Path) -> dict:
     if before:
         return {"status": "unprobed", "why": f"{before} of {len(rows)} rows measured before rows carried probes"}
     probed = [r for r in rows if r["probe"]]
+    if not probed:
+        return {"status": "unprobed", "why": "no row names a scene a probe can render"}
     per: dict[str, int] = {}
     for r in probed:
         t = r["probe"]["technique"]

@@ -165,6 +165,13 @@ def check_template(text: str) -> None:
                                 f"(read it from a page with a placeholder, or write a setting as code)")
 
 
+def _machine(meta: dict) -> str:
+    m = meta.get("device") or meta.get("machine") or "–"
+    if isinstance(m, dict):  # a tool's own record of the machine
+        m = ", ".join(str(m[k]) + (" cores" if k == "cores" else "") for k in ("cpu", "cores") if k in m) or "–"
+    return str(m)
+
+
 def _day(measured) -> str:
     text = str(measured or "–")
     return text if len(text) <= 10 or "…" in text else text[:10]
@@ -174,8 +181,7 @@ def _still_true(status: dict | None) -> str:
     if status is None:
         return "not checked"
     return {"current": "yes", "changed": "**no**: the images have changed since",
-            "unprobed": "unknown: measured before rows carried probes"}[status["status"]] + (
-        f" ({status['why']})" if status["status"] == "changed" else "")
+            "unprobed": "unknown"}[status["status"]] + (f" ({status['why']})" if status["status"] != "current" else "")
 
 
 def pages_table(results: Path) -> list[str]:
@@ -196,7 +202,7 @@ def pages_table(results: Path) -> list[str]:
                 meta["measured"] = " … ".join(days)
             link = f"[{folder.name}]({folder.name}/README.md)" + (f" ({path.name})" if path.name != "cpu.json" else "")
             key = folder.name if path.name == "cpu.json" else f"{folder.name}/{path.name}"
-            lines.append(f"| {link} | {meta.get('device') or meta.get('machine') or '–'} | {meta.get('commit', '–')} | "
+            lines.append(f"| {link} | {_machine(meta)} | {meta.get('commit', '–')} | "
                          f"{_day(meta.get('measured'))} | {_still_true(status.get(key))} |")
     return lines
 

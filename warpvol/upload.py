@@ -287,8 +287,8 @@ EXTINCTION_SETTINGS = {
 EXTINCTION_BIAS = Bias("extinction_grid", exact=0, when="rbf")
 #: A cell of the baked grid, in radii of the smallest Gaussian: the trilinear error goes as its
 #: square (tests/test_extinction_grid.py). Even one Gaussian costs a march more than the grid's 8
-#: samples do (its hash-grid cell and its exp at each of three lookups a step): rbf-single and
-#: rbf-cornell (1 and 16 Gaussians) march 2.6x faster baked, at the same error (results/defaults).
+#: samples do (its hash-grid cell and its exp at each of three lookups a step), so every RBF
+#: medium is baked (rbf-single and rbf-cornell in results/defaults).
 BAKE_CELL = 0.25
 BAKE_MAX = 256  # cells along the longest side the choice from the medium goes up to
 

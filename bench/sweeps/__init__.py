@@ -123,6 +123,15 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
           "eps / (1 - a); single- and multiple-scattering RMSE against the reference at albedo 0.5, 0.8, 0.95, HG g = 0 "
           "(isotropic)",
           "illumination_network", "bound", illumination_network.albedo_grid, illumination_network.albedo_bound),
+    Sweep("illumination-network-lights", "Szirmay-Kalos et al. 2005's claim that the speed hardly depends on the number "
+          "of lights or the sky: 1024 particles, D = 128, one iteration a frame, 1..16 directional lights turning every "
+          "frame, under a black and a blue sky, 256x256, HG g = 0 (isotropic)",
+          "illumination_network", "table", illumination_network.lights_grid, illumination_network.lights_cost),
+    Sweep("light-shafts-equal-time", "Tóth & Umenhoffer 2009's claim that interleaving keeps the quality at a "
+          "fraction of the cost, at equal frame time: N samples over M x M pixels (M = 1, 2, 4, 8; the paper's block "
+          "sum and the depth-aware one) against light_shafts' own converged image, over the image and near depth jumps "
+          "apart, colonnade-shafts 320x240",
+          "light_shafts", "table", light_shafts.shafts_equal_time_grid, light_shafts.shafts_equal_time),
     Sweep("reference-speed", "the reference path tracer: camera paths per second (and per core) on the built-in "
           "scenes at 160x120, 64 spp, and a 400-sphere cumulus at 80x60, 4096 spp, all orders of scattering; "
           "Mitsuba 3 volpath timed on the same scene where it can render it",

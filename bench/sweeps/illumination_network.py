@@ -15,10 +15,10 @@ SUN2 = {"type": "directional", "direction": [0.6, 0.8, -0.3], "irradiance": 1.5}
 
 
 def network_scene(quick: bool, n: int = 1024, width: int = 512, albedo: float = 0.9, sky: bool = True,
-                   seed: int = 1):
+                   seed: int = 1, lights: list | None = None):
     """particle-cloud as in the paper's results: ``n`` particles (radius scaled by n^(-1/3)
     so the cloud's volume stays put), albedo 0.9, g = 0, 2 R tau = 20 expected collisions
-    across it, two directional lights and sky."""
+    across it, two directional lights (or ``lights``) and sky."""
     from warpvol.scene.procedural import particle_cloud
 
     d = particle_cloud()
@@ -28,7 +28,7 @@ def network_scene(quick: bool, n: int = 1024, width: int = 512, albedo: float = 
     R = 1.2 + radius
     sigma = 10.0 * R**2 / (n * radius**3)  # mean tau over the ball = n sigma r^3 / R^3 = 20 / (2 R)
     d["camera"].update(width=width, height=width)
-    d["lights"] = [d["lights"][0], SUN2]
+    d["lights"] = lights if lights is not None else [d["lights"][0], SUN2]
     d["background"] = d["background"] if sky else [0.0, 0.0, 0.0]
     d["media"][0].update(generator={"kind": "cloud", "count": n, "seed": seed, "extent": 1.2}, radius=radius,
                          sigma_t=sigma, albedo=albedo, phase={"type": "hg", "g": 0.0})
@@ -262,13 +262,55 @@ def lightpass_scaling(params: dict, device: str, quick: bool) -> dict:
     return row
 
 
+def lights_grid(quick: bool) -> list[dict]:
+    counts = (1, 4) if quick else (1, 2, 4, 8, 16)
+    return [{"lights": k, "sky": sky} for sky in (0, 1) for k in counts]
+
+
+def lights_cost(params: dict, device: str, quick: bool) -> dict:
+    """The paper's claim (Szirmay-Kalos et al. 2005, section 4) that the speed hardly depends on
+    the number of lights or on the sky: 1024 particles, D = 128, one iteration a frame, 256x256,
+    ``lights`` directional lights of equal total irradiance spread over the upper hemisphere
+    (golden-angle spiral), under a black or a blue sky; every light turning 3 degrees a frame about
+    y, so each frame re-runs the direct light (a light pass per light), the emission, the
+    iteration and the splat."""
+    k, w = params["lights"], (32 if quick else 256)
+    golden = np.pi * (3.0 - np.sqrt(5.0))
+    suns = []
+    for i in range(k):
+        y = -0.3 - 0.6 * (i + 0.5) / k  # pointing down, from steep to grazing
+        phi = golden * i
+        ring = np.sqrt(1.0 - y * y)
+        suns.append({"type": "directional", "direction": [ring * np.cos(phi), y, ring * np.sin(phi)],
+                     "irradiance": 3.0 / k})
+    scene = network_scene(quick, 1024, w, sky=bool(params["sky"]), lights=suns)
+    r = wv.Renderer(scene, technique="illumination_network", device=device, directions=128, iterations=1)
+    lights = list(scene.lights)
+    turn = [0]
+
+    def move():
+        turn[0] += 1
+        a = np.radians(3.0 * turn[0])
+        rot = np.array([[np.cos(a), 0.0, np.sin(a)], [0.0, 1.0, 0.0], [-np.sin(a), 0.0, np.cos(a)]])
+        r.update(lights=[dataclasses.replace(light, direction=tuple(rot @ np.asarray(light.direction, float)))
+                         for light in lights])
+
+    row = time_frames(r, repeats=3 if quick else 8, invalidate=None, before=move)
+    stage = {k2: v["median_ms"] for k2, v in row["stages"].items() if v.get("status") == "ran"}
+    row["table"] = {"direct ms": stage.get("direct", 0.0), "emission ms": stage.get("emission", 0.0),
+                    "iterate ms": stage.get("iterate", 0.0), "splat ms": stage.get("splat", 0.0)}
+    row["scene"] = (f"1024 particles, {w}x{w}, D = 128, k directional lights (total irradiance 3) turning 3 degrees a "
+                    "frame, black or blue sky")
+    return row
+
+
 def particle_cloud_dict(scene, n: int, radius: float, sigma_t: float) -> dict:
     """``scene`` (a network_scene) as a table with ``n`` particles of ``radius`` and ``sigma_t``."""
     from warpvol.scene.procedural import particle_cloud
 
     d = particle_cloud()
     d["camera"].update(width=scene.camera.width, height=scene.camera.height)
-    d["lights"] = [d["lights"][0], SUN2]
+    d["lights"] = lights if lights is not None else [d["lights"][0], SUN2]
     d["media"][0].update(generator={"kind": "cloud", "count": n, "seed": 1, "extent": 1.2}, radius=radius,
                          sigma_t=sigma_t, albedo=0.9, phase={"type": "hg", "g": 0.0})
     return d
