@@ -26,8 +26,8 @@ PROBE_SIZE = (16, 12)
 PROBE_BLOCKS = (3, 4)  # rows x columns of the block means kept
 PROBE_SPP = 2
 PROBE_RTOL = 1e-3
-#: Rows re-rendered per technique of a page by ``stale`` (the first ones): a change of a
-#: technique's code shows in every row of it.
+#: Rows re-rendered per technique and scene of a page by ``stale`` (the first ones): a change of
+#: a technique's code shows in most rows of it, a change for one kind of medium in that scene's.
 CHECK_PER_TECHNIQUE = 2
 SCENES = Path(__file__).resolve().parent.parent / "scenes"
 
@@ -101,12 +101,13 @@ def page_status(path: Path) -> dict:
     probed = [r for r in rows if r["probe"]]
     if not probed:
         return {"status": "unprobed", "why": "no row names a scene a probe can render"}
-    per: dict[str, int] = {}
+    per: dict[tuple, int] = {}
     for r in probed:
         t = r["probe"]["technique"]
-        if per.get(t, 0) >= CHECK_PER_TECHNIQUE:
+        key = (t, r["probe"]["scene"])
+        if per.get(key, 0) >= CHECK_PER_TECHNIQUE:
             continue
-        per[t] = per.get(t, 0) + 1
+        per[key] = per.get(key, 0) + 1
         why = changed(r["probe"])
         if why:
             return {"status": "changed", "why": f"{t} on {Path(r['probe']['scene']).stem}: {why}",

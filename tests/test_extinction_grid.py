@@ -6,7 +6,7 @@ import pytest
 
 import warpvol as wv
 from warpvol.scene import scene_from_dict
-from warpvol.upload import BAKE_CELL, extinction_cells
+from warpvol.upload import BAKE_CELL, BAKE_OVERLAP, extinction_cells, gaussians_in_reach
 
 
 def fog(count, radius, width=16, height=12, seed=3):
@@ -32,15 +32,22 @@ def test_shadow_rays_take_the_closed_form(device):
     np.testing.assert_allclose(one, many, rtol=1e-4, atol=1e-6 * many.max())
 
 
-def test_the_choice_follows_the_radius(device):
-    """Every RBF medium is baked, a few Gaussians as many (even one costs a march more than the
-    grid's 8 samples), a cell a quarter of the smallest radius; the choice is in diagnostics()
-    and a setting overrides it."""
-    few, many = scene_from_dict(fog(4, 0.15)), scene_from_dict(fog(400, 0.1))
-    for scene, radius in ((few, 0.15), (many, 0.1)):
-        centers = np.asarray(scene.media[0].centers)
-        extent = np.ptp(centers, axis=0).max() + 2 * 5 * radius  # the centres' spread, the cut-off on both sides
-        assert extinction_cells(scene.media[0], -1) == pytest.approx(extent / (BAKE_CELL * radius), abs=2)
+def test_the_choice_follows_the_grid_it_needs(device):
+    """A medium whose grid of cells a quarter of its smallest radius is small (at most 64 a side)
+    is baked at that grid, a few Gaussians as many (even one costs a march more than the grid's
+    8 samples); a larger one only where many Gaussians overlap (a lookup sums them all), a cell
+    half the radius; small Gaussians spread thin are summed where they are (their grid would be
+    hundreds of cells a side). The choice is in diagnostics() and a setting overrides it."""
+    few, many, sparse = (scene_from_dict(fog(n, r)) for n, r in ((4, 0.15), (400, 0.1), (4, 0.02)))
+
+    def extent(scene, radius):  # the centres' spread and the cut-off on both sides
+        return np.ptp(np.asarray(scene.media[0].centers), axis=0).max() + 2 * 5 * radius
+
+    assert extinction_cells(few.media[0], -1) == pytest.approx(extent(few, 0.15) / (BAKE_CELL * 0.15), abs=2)
+    assert extinction_cells(few.media[0], -1) <= 64
+    assert extent(many, 0.1) / (BAKE_CELL * 0.1) > 64 and gaussians_in_reach(many.media[0]) > BAKE_OVERLAP
+    assert extinction_cells(many.media[0], -1) == pytest.approx(extent(many, 0.1) / 0.05, abs=2)
+    assert gaussians_in_reach(sparse.media[0]) <= BAKE_OVERLAP and extinction_cells(sparse.media[0], -1) == 0
     cells = extinction_cells(many.media[0], -1)
     r = march(fog(400, 0.1, 8, 6), device)
     r.render()

@@ -282,27 +282,51 @@ EXTINCTION_SETTINGS = {
     "extinction_grid": Setting(-1, -1, 512, "cells along the longest side of the grid an RBF medium's extinction is "
                                              "baked into, so a march reads 8 samples where it would sum every Gaussian "
                                              "in reach; 0: the Gaussians summed at every lookup (exact); -1: chosen from "
-                                             "the medium (a cell a quarter of the smallest Gaussian's radius)"),
+                                             "the medium (a cell a quarter of the smallest radius where that grid is at "
+                                             "most 64 cells a side; else half a radius where more than 8 Gaussians "
+                                             "overlap; else not baked)"),
 }
 EXTINCTION_BIAS = Bias("extinction_grid", exact=0, when="rbf")
 #: A cell of the baked grid, in radii of the smallest Gaussian: the trilinear error goes as its
 #: square (tests/test_extinction_grid.py). Even one Gaussian costs a march more than the grid's 8
-#: samples do (its hash-grid cell and its exp at each of three lookups a step), so every RBF
-#: medium is baked (rbf-single and rbf-cornell in results/defaults).
+#: samples do (its hash-grid cell and its exp at each of three lookups a step), so a medium whose
+#: grid of such cells is small (BAKE_SMALL cells a side at most) is baked whatever its Gaussians
+#: (rbf-single and rbf-cornell in results/defaults). A larger grid (small Gaussians spread over a
+#: wide box) costs its cells in time and memory: it is baked only where more than BAKE_OVERLAP
+#: Gaussians reach a point on average, a cell half the smallest radius, at most BAKE_MAX a side.
 BAKE_CELL = 0.25
-BAKE_MAX = 256  # cells along the longest side the choice from the medium goes up to
+BAKE_SMALL = 64
+BAKE_OVERLAP = 8
+BAKE_MAX = 256
 
 
 def extinction_cells(m, setting: int) -> int:
     """Cells along the longest side of the grid a march reads medium ``m`` from (0: the medium
-    itself): ``setting`` for an RBF medium, or with -1 the choice from the medium (a cell
-    BAKE_CELL of its smallest radius, at most ``BAKE_MAX``); 0 for every other kind."""
+    itself): ``setting`` for an RBF medium, or with -1 the choice from the medium (a cell BAKE_CELL
+    of its smallest radius where that grid has at most BAKE_SMALL cells a side; else, where more
+    than BAKE_OVERLAP Gaussians reach a point, a cell half that radius, at most BAKE_MAX; else 0);
+    0 for every other kind."""
     if not isinstance(m, RBFMedium) or not len(m.centers) or setting == 0:
         return 0
     if setting > 0:
         return setting
     lo, hi = medium_bounds(m)
-    return int(min(BAKE_MAX, math.ceil(float(np.max(hi - lo)) / (BAKE_CELL * float(m.gaussians()[0].min())))))
+    extent, radius = float(np.max(hi - lo)), float(m.gaussians()[0].min())
+    fine = math.ceil(extent / (BAKE_CELL * radius))
+    if fine <= BAKE_SMALL:
+        return fine
+    if gaussians_in_reach(m) <= BAKE_OVERLAP:
+        return 0
+    return int(min(BAKE_MAX, math.ceil(extent / (0.5 * radius))))
+
+
+def gaussians_in_reach(m: RBFMedium) -> float:
+    """How many of an RBF medium's Gaussians reach a point of its bounds on average: the sum of
+    their cut-off balls' volumes over the bounds' volume (what a density lookup sums)."""
+    radii, _ = m.gaussians()
+    lo, hi = medium_bounds(m) or (np.zeros(3), np.zeros(3))
+    volume = float(np.prod(np.maximum(hi - lo, 1e-9)))
+    return float(np.sum(4.0 / 3.0 * np.pi * (float(CUTOFF) * radii.astype(np.float64)) ** 3)) / volume
 
 
 def baked_rbf_grid(m: RBFMedium, lo: np.ndarray, hi: np.ndarray, cells: int, device) -> GridBuffers:
