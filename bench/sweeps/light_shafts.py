@@ -31,9 +31,11 @@ def shafts_frame(params: dict, device: str, quick: bool) -> dict:
     pass, the march and the block sums run; the BVH and the medium stay cached."""
     settings = {"steps": 64, "edges": 0, **SHAFT_MODES.get(params.get("mode"), {}),  # the paper's block sum
                 **{k: v for k, v in params.items() if k != "mode"}}
-    r = wv.Renderer(shafts_scene(quick), technique="light_shafts", device=device, **PAPER_MODEL, **settings)
+    scene = shafts_scene(quick)
+    r = wv.Renderer(scene, technique="light_shafts", device=device, **PAPER_MODEL, **settings)
     row = time_frames(r, repeats=2 if quick else 5, invalidate=("camera", "lights"))
     row["settings"] = settings
+    row["scene"] = f"colonnade-shafts {scene.camera.width}x{scene.camera.height}"
     return row
 
 

@@ -52,4 +52,5 @@ def overhead(params: dict, device: str, quick: bool) -> dict:
     else:
         row = time_frames(r, repeats // 4)
         row["overhead_us"] = (row["median_ms"] - sum(s["median_ms"] for s in row["stages"].values())) * 1000.0
+    row["scene"] = "smoke-grid 4x3"
     return row

@@ -48,8 +48,11 @@ def table2_grid(quick: bool) -> list[dict]:
 def table2(params: dict, device: str, quick: bool) -> dict:
     """Precomputed (P): only the march runs; dynamic: medium and lights change every frame."""
     lights, dynamic = TABLE2_COLUMNS[params["column"]]
-    r = wv.Renderer(_rbf_scene(quick, lights), technique="rbf_propagation", multiple_scattering=0, device=device, grid=params["grid"])
-    return time_frames(r, repeats=2 if quick else 3, invalidate=("medium", "lights", "camera") if dynamic else ("camera",))
+    scene = _rbf_scene(quick, lights)
+    r = wv.Renderer(scene, technique="rbf_propagation", multiple_scattering=0, device=device, grid=params["grid"])
+    row = time_frames(r, repeats=2 if quick else 3, invalidate=("medium", "lights", "camera") if dynamic else ("camera",))
+    row["scene"] = f"rbf-thick-fog {scene.camera.width}x{scene.camera.height}, {lights} lights"
+    return row
 
 
 def table2_fps(table: dict, params: dict):
@@ -63,9 +66,12 @@ def table3_grid(quick: bool) -> list[dict]:
 
 
 def table3(params: dict, device: str, quick: bool) -> dict:
-    r = wv.Renderer(_rbf_scene(quick, 1, params["rbfs"]), technique="rbf_propagation", multiple_scattering=0, device=device, grid=20)
+    scene = _rbf_scene(quick, 1, params["rbfs"])
+    r = wv.Renderer(scene, technique="rbf_propagation", multiple_scattering=0, device=device, grid=20)
     dynamic = params["column"] == "dynamic"
-    return time_frames(r, repeats=2 if quick else 3, invalidate=("medium", "lights", "camera") if dynamic else ("camera",))
+    row = time_frames(r, repeats=2 if quick else 3, invalidate=("medium", "lights", "camera") if dynamic else ("camera",))
+    row["scene"] = f"rbf-thick-fog {scene.camera.width}x{scene.camera.height}, {params['rbfs']} RBFs, one light"
+    return row
 
 
 def table3_fps(table: dict, params: dict):
@@ -91,7 +97,7 @@ def rules(params: dict, device: str, quick: bool) -> dict:
     exact = a["optical_depth_exact"][..., 0]
     row.update(mean_abs_error=float(err.mean()), mean_exact=float(exact.mean()),
                rel_error=float(err.mean() / exact.mean()), max_abs_error=float(err.max()),
-               p95_rel_cell=float(np.percentile(err / np.maximum(exact, 1e-3), 95)))
+               p95_rel_cell=float(np.percentile(err / np.maximum(exact, 1e-3), 95)), scene="rbf-cornell 8x6")
     return row
 
 
@@ -119,6 +125,7 @@ def scaling(params: dict, device: str, quick: bool) -> dict:
         row = time_frames(r, repeats=2 if quick else 5, invalidate=("camera",))
         row["work"] = w * (w * 3 // 4) * params["steps"]
     row["stage_ms"] = row["stages"][params["stage"]]["median_ms"]
+    row["scene"] = f"rbf-cornell {scene.camera.width}x{scene.camera.height}"
     return row
 
 
