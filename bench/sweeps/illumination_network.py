@@ -310,7 +310,7 @@ def particle_cloud_dict(scene, n: int, radius: float, sigma_t: float) -> dict:
 
     d = particle_cloud()
     d["camera"].update(width=scene.camera.width, height=scene.camera.height)
-    d["lights"] = lights if lights is not None else [d["lights"][0], SUN2]
+    d["lights"] = [d["lights"][0], SUN2]
     d["media"][0].update(generator={"kind": "cloud", "count": n, "seed": 1, "extent": 1.2}, radius=radius,
                          sigma_t=sigma_t, albedo=0.9, phase={"type": "hg", "g": 0.0})
     return d
