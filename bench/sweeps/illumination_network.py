@@ -231,6 +231,22 @@ def lightpass_scaling_grid(quick: bool) -> list[dict]:
     return [{"n": n} for n in ((128, 256) if quick else (1024, 2048, 4096, 8192))]
 
 
+def turning_suns(r, degrees: float = 3.0):
+    """A ``before`` for ``time_frames``: each call turns the renderer's directional lights
+    ``degrees`` further about y from where they started (other lights stay)."""
+    lights = list(r.scene.lights)
+    turn = [0]
+
+    def move():
+        turn[0] += 1
+        a = np.radians(degrees * turn[0])
+        rot = np.array([[np.cos(a), 0.0, np.sin(a)], [0.0, 1.0, 0.0], [-np.sin(a), 0.0, np.cos(a)]])
+        r.update(lights=[dataclasses.replace(light, direction=tuple(rot @ np.asarray(light.direction, float)))
+                         if light.type == "directional" else light for light in lights])
+
+    return move
+
+
 def lightpass_scaling(params: dict, device: str, quick: bool) -> dict:
     """The light pass as particles get finer: ``n`` particles of radius 0.12 (1024 / n)^(1/3)
     with sigma_t r fixed (each particle as thick as at n = 1024, the cloud thicker as n^(1/3)),
@@ -243,17 +259,7 @@ def lightpass_scaling(params: dict, device: str, quick: bool) -> dict:
     d = particle_cloud_dict(base, n, radius, (np.asarray(base.media[0].sigma_t) * 0.12 / radius).tolist())
     scene = wv.load_scene(d)
     r = wv.Renderer(scene, technique="illumination_network", device=device, directions=128, iterations=1)
-    lights = list(scene.lights)
-    turn = [0]
-
-    def move():
-        turn[0] += 1
-        a = np.radians(3.0 * turn[0])
-        rot = np.array([[np.cos(a), 0.0, np.sin(a)], [0.0, 1.0, 0.0], [-np.sin(a), 0.0, np.cos(a)]])
-        r.update(lights=[dataclasses.replace(light, direction=tuple(rot @ np.asarray(light.direction, float)))
-                         if light.type == "directional" else light for light in lights])
-
-    row = time_frames(r, repeats=3 if quick else 8, invalidate=None, before=move)
+    row = time_frames(r, repeats=3 if quick else 8, invalidate=None, before=turning_suns(r))
     diag = r.diagnostics()
     row["table"] = {"direct ms": row["stages"]["direct"]["median_ms"], "texels": diag["light_texels"],
                     "refined": diag["light_refined"], "error": diag["light_error"], "fell back": diag["light_fell_back"]}
@@ -285,17 +291,7 @@ def lights_cost(params: dict, device: str, quick: bool) -> dict:
                      "irradiance": 3.0 / k})
     scene = network_scene(quick, 1024, w, sky=bool(params["sky"]), lights=suns)
     r = wv.Renderer(scene, technique="illumination_network", device=device, directions=128, iterations=1)
-    lights = list(scene.lights)
-    turn = [0]
-
-    def move():
-        turn[0] += 1
-        a = np.radians(3.0 * turn[0])
-        rot = np.array([[np.cos(a), 0.0, np.sin(a)], [0.0, 1.0, 0.0], [-np.sin(a), 0.0, np.cos(a)]])
-        r.update(lights=[dataclasses.replace(light, direction=tuple(rot @ np.asarray(light.direction, float)))
-                         for light in lights])
-
-    row = time_frames(r, repeats=3 if quick else 8, invalidate=None, before=move)
+    row = time_frames(r, repeats=3 if quick else 8, invalidate=None, before=turning_suns(r))
     stage = {k2: v["median_ms"] for k2, v in row["stages"].items() if v.get("status") == "ran"}
     row["table"] = {"direct ms": stage.get("direct", 0.0), "emission ms": stage.get("emission", 0.0),
                     "iterate ms": stage.get("iterate", 0.0), "splat ms": stage.get("splat", 0.0)}
