@@ -28,6 +28,7 @@ from .physics.lights import (Emitter, angle_point, angle_samples, angle_share, l
                              step_mean_irradiance)
 from .media.grid import lattice_trilinear_vec3
 from .physics.transmittance import transmittance_rgb
+from .pipeline import Stage
 
 dev.kernel_module(__name__)
 
@@ -144,13 +145,42 @@ def light_depth_volume(m: Media, lights: wp.array, n: int, steps: int, device) -
     return out
 
 
-def with_light_depth(sl: ShadowedLights, m: Media, baked: wp.array | None, n: int, device) -> ShadowedLights:
-    """``sl`` reading its lights' optical depth from ``baked`` (``light_depth_volume`` with n^3
-    nodes), or marching it where ``baked`` is None."""
-    sl.baked_n = n if baked is not None else 0
-    sl.baked_lo, sl.baked_hi = m.het_min, m.het_max
-    sl.baked = baked if baked is not None else wp.zeros(1, dtype=wp.vec3, device=device)
-    return sl
+def bakes_light_depth(scene, n: int, lights: int) -> bool:
+    """Whether a light volume of n nodes a side pays: some of ``lights`` to bake, and a medium
+    whose optical depth is marched or walked (not homogeneous)."""
+    return n > 0 and lights > 0 and any(m.type != "homogeneous" for m in scene.media)
+
+
+class LightDepthVolume:
+    """The light volume of a marcher that reads its lights through ``ShadowedLights``
+    (light_shafts, particle_glow): its stage ``light_volume`` bakes the scene's lights
+    (``light_depth_volume``, ``shadow_grid`` nodes a side, ``shadow_steps`` through grids) and
+    ``attach`` gives it to the lights' struct, which marches instead where it does not pay.
+    ``media`` and ``lights``: callables giving the uploaded ``Media`` struct and lights array."""
+
+    def __init__(self, technique, media, lights):
+        self.t, self._media, self._lights = technique, media, lights
+        self.depth = None
+
+    @property
+    def on(self) -> bool:
+        return bakes_light_depth(self.t.scene, self.t.settings["shadow_grid"], len(self.t.scene.lights))
+
+    def stage(self) -> Stage:
+        return Stage("light_volume", self._bake, reads=("medium", "lights"), settings=("shadow_grid", "shadow_steps"),
+                     after=("medium", "lights"), needed=self.on)
+
+    def _bake(self):
+        s = self.t.settings
+        self.depth = light_depth_volume(self._media(), self._lights(), s["shadow_grid"], s["shadow_steps"], self.t.device)
+
+    def attach(self, sl: ShadowedLights) -> ShadowedLights:
+        """``sl`` reading its lights' optical depth from the volume, or marching it (``baked_n`` 0)."""
+        baked = self.depth if self.on else None
+        sl.baked_n = self.t.settings["shadow_grid"] if baked is not None else 0
+        sl.baked_lo, sl.baked_hi = self._media().het_min, self._media().het_max
+        sl.baked = baked if baked is not None else wp.zeros(1, dtype=wp.vec3, device=self.t.device)
+        return sl
 
 
 @wp.func

@@ -130,7 +130,7 @@ def shadowed_lights(scene: Scene, lights: wp.array, surfaces: Surfaces, res: int
     sl.maps = wp.array(structs or [ShadowMap()], dtype=ShadowMap, device=device)
     sl.depth = (shadow_map_depths(structs, device, surfaces=surfaces) if occluders
                 else wp.full(1, INF, dtype=float, device=device))
-    sl.baked_n, sl.baked = 0, wp.zeros(1, dtype=wp.vec3, device=device)  # marched (shading.with_light_depth)
+    sl.baked_n, sl.baked = 0, wp.zeros(1, dtype=wp.vec3, device=device)  # marched (shading.LightDepthVolume.attach)
     return sl
 
 
@@ -141,12 +141,6 @@ LIGHT_VOLUME_SETTINGS = {
                                        "edges blurred to a cell); 0 = marched at every step"),
 }
 LIGHT_VOLUME_BIAS = Bias("shadow_grid", exact=0, when="heterogeneous")
-
-
-def bakes_light_depth(scene: Scene, n: int) -> bool:
-    """Whether a light volume of n nodes a side pays: some light, and a medium whose optical
-    depth is marched or walked (not homogeneous)."""
-    return n > 0 and bool(scene.lights) and any(m.type != "homogeneous" for m in scene.media)
 
 
 def check_particle_scene(technique: str, scene: Scene) -> None:

@@ -116,9 +116,9 @@ from ..scattering import SETTINGS as MS_SETTINGS
 from ..scattering import MultipleScattering, ScatteredLight, scattered_light, scattered_on_surface
 from ..scattering import check_settings as check_ms_settings
 from ..scattering import leaves_out as ms_leaves_out
-from ..shading import light_arriving, light_depth_volume, marched_optical_depth, surface_through_maps, with_light_depth
+from ..shading import LightDepthVolume, light_arriving, marched_optical_depth, surface_through_maps
 from ..upload import (EXTINCTION_BIAS, EXTINCTION_SETTINGS, LIGHT_VOLUME_BIAS, LIGHT_VOLUME_SETTINGS, SceneUploads,
-                      bakes_light_depth, pinhole, scene_bounds, shadow_map_structs)
+                      pinhole, scene_bounds, shadow_map_structs)
 
 dev.kernel_module(__name__)
 
@@ -461,7 +461,7 @@ class LightShafts(Technique):
         self.multiple = MultipleScattering(self, lambda: self.uploads.surfaces, lambda: self.uploads.lights,
                                            lambda: self.uploads.media.struct)
         self.maps = None
-        self.light_depth = None  # the lights' optical depth on a lattice (stage light_volume)
+        self.light_volume = LightDepthVolume(self, lambda: self.uploads.media.struct, lambda: self.uploads.lights)
         self.depth = wp.full(1, INF, dtype=float, device=device)
         self._no_keys = wp.full(1, NO_HIT, dtype=wp.int64, device=device)  # "ray cast instead"
         self._no_index = wp.full(1, -1, dtype=int, device=device)
@@ -498,8 +498,7 @@ class LightShafts(Technique):
             Stage("visible", self._visible, reads=("camera",), settings=("raster", "raster_tiles"),
                   after=("medium", "surfaces")),
             *self.multiple.stages(after=("medium", "surfaces", "lights")),
-            Stage("light_volume", self._bake, reads=("medium", "lights"), settings=("shadow_grid", "shadow_steps"),
-                  after=("medium", "lights"), needed=self._bakes()),
+            self.light_volume.stage(),
             Stage("surface", self._surface, reads=("camera", "background"),
                   settings=("shadow_steps", "steps", "multiple_scattering", "shadow_grid"),
                   after=("medium", "surfaces", "lights", "shadow_maps", "visible", "multiple_view", "light_volume"),
@@ -552,18 +551,10 @@ class LightShafts(Technique):
             self.maps = wp.array(self._map_structs(occluders=False) or [ShadowMap()], dtype=ShadowMap,
                                  device=self.device)
 
-    def _bakes(self) -> bool:
-        return bakes_light_depth(self.scene, self.settings["shadow_grid"])
-
-    def _bake(self):
-        self.light_depth = light_depth_volume(self.uploads.media.struct, self.uploads.lights,
-                                              self.settings["shadow_grid"], self.settings["shadow_steps"], self.device)
-
     def _shadowed_lights(self) -> ShadowedLights:
         sl = ShadowedLights()
         sl.lights, sl.maps, sl.depth = self.uploads.lights, self.maps, self.depth
-        return with_light_depth(sl, self.uploads.media.struct, self.light_depth if self._bakes() else None,
-                                self.settings["shadow_grid"], self.device)
+        return self.light_volume.attach(sl)
 
     def _scratch(self, name: str, n: int, dtype, fill=None):
         """An intermediate array kept from frame to frame (allocating and first touching ~6 MB per

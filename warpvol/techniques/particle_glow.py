@@ -82,10 +82,9 @@ from ..scattering import SETTINGS as MS_SETTINGS
 from ..scattering import MultipleScattering, ScatteredLight, scattered_light, scattered_on_surface
 from ..scattering import check_settings as check_ms_settings
 from ..scattering import leaves_out as ms_leaves_out
-from ..shading import (camera_segment, light_depth_volume, step_in_scatter_through_maps, surface_through_maps,
-                       with_light_depth)
+from ..shading import LightDepthVolume, camera_segment, step_in_scatter_through_maps, surface_through_maps
 from ..upload import (EXTINCTION_BIAS, EXTINCTION_SETTINGS, LIGHT_VOLUME_BIAS, LIGHT_VOLUME_SETTINGS, SceneUploads,
-                      bakes_light_depth, pinhole, shadowed_lights)
+                      pinhole, shadowed_lights)
 
 dev.kernel_module(__name__)
 
@@ -292,7 +291,7 @@ class ParticleGlow(Technique):
         self.density = self.weight = self.direction = None
         self.g0 = self.gn = None
         self.sl: ShadowedLights | None = None
-        self.light_depth = None  # the lights' optical depth on a lattice (stage light_volume)
+        self.light_volume = LightDepthVolume(self, lambda: self.uploads.media.struct, lambda: self.uploads.lights)
         self.image = None
 
     def check_settings(self, settings):
@@ -311,20 +310,12 @@ class ParticleGlow(Technique):
             Stage("tables", self._tables, settings=("specular", "shininess")),
             Stage("shadow_maps", self._shadow_maps, reads=("lights",), settings=("shadow_map_res", "depth_bias"),
                   after=("surfaces", "lights")),
-            Stage("light_volume", self._bake, reads=("medium", "lights"), settings=("shadow_grid", "shadow_steps"),
-                  after=("medium", "lights"), needed=self._bakes()),
+            self.light_volume.stage(),
             Stage("march", self._march, reads=("camera", "background"),
                   settings=("steps", "shadow_steps", "glow", "k_c", "c1", "c2", "cell", "anchor", "multiple_scattering",
                             "shadow_grid"),
                   after=("medium", "textures", "tables", "shadow_maps", "multiple_view", "light_volume")),
         ]
-
-    def _bakes(self) -> bool:
-        return bakes_light_depth(self.scene, self.settings["shadow_grid"])
-
-    def _bake(self):
-        self.light_depth = light_depth_volume(self.uploads.media.struct, self.uploads.lights,
-                                              self.settings["shadow_grid"], self.settings["shadow_steps"], self.device)
 
     def _textures(self):
         s = self.settings
@@ -363,8 +354,7 @@ class ParticleGlow(Technique):
         scene, u = self.scene, self.uploads
         npix = scene.camera.width * scene.camera.height
         self.image = wp.empty(npix, dtype=wp.vec3, device=self.device)
-        sl = with_light_depth(self.sl, u.media.struct, self.light_depth if self._bakes() else None,
-                              self.settings["shadow_grid"], self.device)
+        sl = self.light_volume.attach(self.sl)
         dev.launch(march_glow, npix, [camera_view(pinhole(scene.camera)), u.media.struct, u.surfaces, sl,
                                       self.glow_struct(), wp.vec3(*scene.background), self.multiple.struct(),
                                       self.image], self.device)

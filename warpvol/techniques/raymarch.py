@@ -64,8 +64,8 @@ from ..scattering import SETTINGS as MS_SETTINGS
 from ..scattering import MultipleScattering, ScatteredLight, field_reaches, scattered_light, scattered_on_surface
 from ..scattering import check_settings as check_ms_settings
 from ..scattering import leaves_out as ms_leaves_out
-from ..shading import (baked_light_depth, camera_segment, light_depth_volume, light_transmittance, reflected,
-                       sky_reflected, sky_scattered, surface_direct)
+from ..shading import (baked_light_depth, bakes_light_depth, camera_segment, light_depth_volume, light_transmittance,
+                       reflected, sky_reflected, sky_scattered, surface_direct)
 from ..upload import (EXTINCTION_BIAS, EXTINCTION_SETTINGS, LIGHT_VOLUME_BIAS, LIGHT_VOLUME_SETTINGS, SceneUploads,
                       light_structs, lights_array, pinhole, sky_light_structs)
 
@@ -272,9 +272,7 @@ class Raymarch(Technique):
 
     def _bakes(self) -> bool:
         """A baked volume pays only where transmittance is marched: heterogeneous media, some light."""
-        scene = self.scene
-        return self.settings["shadow_grid"] > 0 and bool(self._baked_lights()) and \
-            any(m.type != "homogeneous" for m in scene.media)
+        return bakes_light_depth(self.scene, self.settings["shadow_grid"], len(self._baked_lights()))
 
     def _baked_lights(self) -> list:
         """What the light volume bakes, in this order: the scene's lights, and the sky's directions
