@@ -20,7 +20,7 @@ import numpy as np
 import warpvol as wv
 from warpvol.scene import BUILTIN
 
-from .overview import STALE_FILE
+from .overview import STALE_FILE, page_files
 
 PROBE_SIZE = (16, 12)
 PROBE_BLOCKS = (3, 4)  # rows x columns of the block means kept
@@ -123,11 +123,8 @@ def stale(results: Path, progress: bool = True) -> dict:
     from tqdm import tqdm
 
     results = Path(results)
-    files = sorted(p for p in results.glob("*/*.json") if not p.name.endswith("-quick.json")
-                   and (p.parent / "README.md").exists())
     out = {}
-    for path in tqdm(files, desc="stale", unit="page", disable=not progress):
-        key = path.parent.name if path.name == "cpu.json" else f"{path.parent.name}/{path.name}"
+    for key, path in tqdm(page_files(results), desc="stale", unit="page", disable=not progress):
         out[key] = page_status(path)
     (results / STALE_FILE).write_text(json.dumps(out, indent=1, sort_keys=True) + "\n")
     return out

@@ -184,26 +184,35 @@ def _still_true(status: dict | None) -> str:
             "unprobed": "unknown"}[status["status"]] + (f" ({status['why']})" if status["status"] != "current" else "")
 
 
+def page_files(results: Path) -> list[tuple[str, Path]]:
+    """Every page's data: (key, path) per JSON file of a folder of ``results`` that has a README
+    (``*-quick.json`` left out), the key the folder's name, or folder/file for a second JSON."""
+    out = []
+    for folder in sorted(p for p in Path(results).iterdir() if p.is_dir() and (p / "README.md").exists()):
+        for path in sorted(p for p in folder.glob("*.json") if not p.name.endswith("-quick.json")):
+            out.append((folder.name if path.name == "cpu.json" else f"{folder.name}/{path.name}", path))
+    return out
+
+
 def pages_table(results: Path) -> list[str]:
     """Every page: where and when its data was measured."""
     status = json.loads((results / STALE_FILE).read_text()) if (results / STALE_FILE).exists() else {}
     lines = ["| page | measured on | commit | date | still true (`bench report --stale`) |", "|---|---|---|---|---|"]
-    for folder in sorted(p for p in results.iterdir() if p.is_dir() and (p / "README.md").exists()):
-        for path in sorted(p for p in folder.glob("*.json") if not p.name.endswith("-quick.json")):
-            doc = json.loads(path.read_text())
-            rows = (doc.get("rows") or [{}]) if isinstance(doc, dict) else [{}]
-            meta = {**rows[0], **{k: v for k, v in doc.items() if k != "rows"}} if isinstance(doc, dict) else {}
-            if not any(k in meta for k in ("device", "commit")):
-                continue
-            dated = sorted((str(r.get("measured", "")), str(r.get("commit", ""))) for r in rows if r.get("commit"))
-            if len({c for _, c in dated}) > 1:  # rows measured at several commits: the first and the last
-                meta["commit"] = f"{dated[0][1]} … {dated[-1][1]}"
-                days = dict.fromkeys((dated[0][0][:10], dated[-1][0][:10]))
-                meta["measured"] = " … ".join(days)
-            link = f"[{folder.name}]({folder.name}/README.md)" + (f" ({path.name})" if path.name != "cpu.json" else "")
-            key = folder.name if path.name == "cpu.json" else f"{folder.name}/{path.name}"
-            lines.append(f"| {link} | {_machine(meta)} | {meta.get('commit', '–')} | "
-                         f"{_day(meta.get('measured'))} | {_still_true(status.get(key))} |")
+    for key, path in page_files(results):
+        doc = json.loads(path.read_text())
+        rows = (doc.get("rows") or [{}]) if isinstance(doc, dict) else [{}]
+        meta = {**rows[0], **{k: v for k, v in doc.items() if k != "rows"}} if isinstance(doc, dict) else {}
+        if not any(k in meta for k in ("device", "commit")):
+            continue
+        dated = sorted((str(r.get("measured", "")), str(r.get("commit", ""))) for r in rows if r.get("commit"))
+        if len({c for _, c in dated}) > 1:  # rows measured at several commits: the first and the last
+            meta["commit"] = f"{dated[0][1]} … {dated[-1][1]}"
+            days = dict.fromkeys((dated[0][0][:10], dated[-1][0][:10]))
+            meta["measured"] = " … ".join(days)
+        folder = path.parent.name
+        link = f"[{folder}]({folder}/README.md)" + (f" ({path.name})" if path.name != "cpu.json" else "")
+        lines.append(f"| {link} | {_machine(meta)} | {meta.get('commit', '–')} | "
+                     f"{_day(meta.get('measured'))} | {_still_true(status.get(key))} |")
     return lines
 
 
