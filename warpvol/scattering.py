@@ -24,8 +24,8 @@ long characteristics:
   scattered) joins the total where a march does not gather it: the surfaces' part always
   (the fog lit by the walls, a wall lit by another), the sky's unless the technique gathers
   the sky's single scattering itself (``sky_samples`` > 0);
-* orders are summed until the ratio rho of successive orders' energies settles (to 1%);
-  the rest of the series is the geometric tail L_k rho / (1 - rho), as Hillaire (EGSR 2020)
+* orders are summed until the ratio rho of successive orders' energies settles (to 1%, or
+  until the change moves the tail by under 1% of the energy summed); the rest of the series is the geometric tail L_k rho / (1 - rho), as Hillaire (EGSR 2020)
   sums the orders of multiple scattering in an atmosphere.
 
 For the camera, every node holds R(x) = sum_d p(w_d . wo) L_{>=1}(x, w_d) / sum_d p(w_d . wo),
@@ -66,6 +66,7 @@ from .media.volume import Media, medium_sigma_t
 from .physics.constants import INF, PI, RAY_EPS
 from .physics.lights import DIRECTIONAL, Emitter, ball_mean_inverse_square, light_incident
 from .physics.phase import phase_eval
+from .physics.sampling import orthonormal_basis
 from .physics.sphere import fibonacci_directions
 from .physics.transmittance import step_integral_rgb, transmittance_rgb
 from .pipeline import Bias, Frame, Setting, SettingsError, Stage
@@ -97,8 +98,14 @@ LEFT_OUT_WITH = (Frame.APPROXIMATED + "multiple scattering and the surfaces' ind
                  "light where the technique does not gather it), on a lattice (multiple_scattering, ms_directions)")
 LEFT_OUT_WITHOUT = "multiple scattering"
 
+LATTICE_PAD = 1.0e-4  # the lattice's bounds pass the media's by this part of their extent
+NEAR_LIGHT_CELLS = 2.0  # nodes this many cells (per axis) from a point or spot light average its source over their hat
+NEAR_DIRECTIONS = 96  # directions from the light over such a node's hat
+NEAR_STEPS = 12  # midpoints along each through the hat
+GOLDEN_ANGLE = 2.399963229728653  # pi (3 - sqrt 5): the Fibonacci set's turn
 MAX_ORDERS = 64  # source iterations before the geometric tail, at most
 SETTLED = 0.01  # the ratio of successive orders counts as settled when it changes by less than this
+TAIL_SETTLED = 0.01  # ... or when the tail's uncertainty from that change is under this part of the energy
 MAX_RATIO = 0.995  # rho above this is taken as this in the tail (albedo 1 in an unbounded medium)
 
 
@@ -158,14 +165,6 @@ def axis_position(lo: float, hi: float, n: int, c: float, s: float, alpha: float
 
 
 @wp.func
-def axis_width(lo: float, hi: float, n: int, s: float, alpha: float, uc: float, u: float) -> float:
-    """The cell width dx/du at lattice coordinate u."""
-    if alpha == 0.0:
-        return (hi - lo) / float(n - 1)
-    return s * alpha * wp.cosh(alpha * (u - uc))
-
-
-@wp.func
 def lattice_coords(lat: Lattice, x: wp.vec3) -> wp.vec3:
     sp = lat.spacing
     return wp.vec3(axis_coord(lat.lo[0], lat.hi[0], lat.n, sp.c[0], sp.s[0], sp.alpha[0], sp.uc[0], x[0]),
@@ -175,12 +174,18 @@ def lattice_coords(lat: Lattice, x: wp.vec3) -> wp.vec3:
 
 @wp.func
 def cell_size(lat: Lattice, x: wp.vec3) -> wp.vec3:
-    """The lattice's cell widths around x, per axis."""
+    """The lattice's cell widths around x, per axis: dx/du = s alpha cosh(alpha (u - uc)) =
+    s alpha sqrt(1 + ((x - c) / s)^2) where graded, no transcendental function a step."""
     sp = lat.spacing
-    u = lattice_coords(lat, wp.min(wp.max(x, lat.lo), lat.hi))
-    return wp.vec3(axis_width(lat.lo[0], lat.hi[0], lat.n, sp.s[0], sp.alpha[0], sp.uc[0], u[0]),
-                   axis_width(lat.lo[1], lat.hi[1], lat.n, sp.s[1], sp.alpha[1], sp.uc[1], u[1]),
-                   axis_width(lat.lo[2], lat.hi[2], lat.n, sp.s[2], sp.alpha[2], sp.uc[2], u[2]))
+    p = wp.min(wp.max(x, lat.lo), lat.hi)
+    out = wp.vec3(0.0)
+    for a in range(3):
+        if sp.alpha[a] == 0.0:
+            out[a] = (lat.hi[a] - lat.lo[a]) / float(lat.n - 1)
+        else:
+            z = (p[a] - sp.c[a]) / sp.s[a]
+            out[a] = sp.s[a] * sp.alpha[a] * wp.sqrt(1.0 + z * z)
+    return out
 
 
 @wp.func
@@ -282,10 +287,14 @@ def scattered_on_surface(sl: ScatteredLight, mat: Material, p: wp.vec3, n: wp.ve
 @wp.kernel
 def bake_scattering(offset: int, m: Media, lat: Lattice, sigma_t: wp.array(dtype=wp.vec3),
                     sigma_s: wp.array(dtype=wp.vec3)):
-    """sigma_t (all media) and each medium's sigma_s at every node (medium-major)."""
+    """sigma_t (all media) and each medium's sigma_s at every node (medium-major). A node on the
+    lattice's boundary, which lies a pad outside the media's bounds, takes them from just inside:
+    the media end at their bounds, and nodes holding none would halve the coefficients over the
+    last cell (a third of an 8^3 lattice's volume)."""
     q = wp.tid() + offset
     n3 = lat.n * lat.n * lat.n
-    x = node_position(lat, q)
+    inset = 2.0 * LATTICE_PAD * wp.max(lat.hi - lat.lo)
+    x = wp.min(wp.max(node_position(lat, q), lat.lo + wp.vec3(inset)), lat.hi - wp.vec3(inset))
     tot = wp.vec3(0.0)
     for i in range(m.count):
         sig = medium_sigma_t(m, i, x)
@@ -382,20 +391,130 @@ def reflect_at_ends(offset: int, s: Surfaces, lat: Lattice, ends: Ends, L: wp.ar
                                    lat.directions[tid / n3])
 
 
+@wp.func
+def node_index(n: int, q: int) -> wp.vec3:
+    """Node q's lattice coordinates (i, j, k)."""
+    return wp.vec3(float(q % n), float((q / n) % n), float(q / (n * n)))
+
+
+@wp.func
+def hat_weight(lat: Lattice, node: wp.vec3, x: wp.vec3) -> float:
+    """The trilinear interpolant's weight of the node at lattice coordinates ``node`` at x: its
+    hat, 1 at the node falling to 0 a cell away on each axis (0 outside the lattice)."""
+    u = lattice_coords(lat, x)
+    w = float(1.0)
+    top = float(lat.n - 1)
+    for a in range(3):
+        if u[a] < 0.0 or u[a] > top:
+            w = 0.0
+        w *= wp.max(1.0 - wp.abs(u[a] - node[a]), 0.0)
+    return w
+
+
+@wp.func
+def support_corner(lat: Lattice, node: wp.vec3, side: float) -> wp.vec3:
+    """A corner of a node's hat (the neighbouring nodes' positions, or its own on the lattice's
+    boundary): side -1 the low corner, +1 the high."""
+    sp = lat.spacing
+    top = float(lat.n - 1)
+    u = wp.vec3(wp.clamp(node[0] + side, 0.0, top), wp.clamp(node[1] + side, 0.0, top),
+                wp.clamp(node[2] + side, 0.0, top))
+    return wp.vec3(axis_position(lat.lo[0], lat.hi[0], lat.n, sp.c[0], sp.s[0], sp.alpha[0], sp.uc[0], u[0]),
+                   axis_position(lat.lo[1], lat.hi[1], lat.n, sp.c[1], sp.s[1], sp.alpha[1], sp.uc[1], u[1]),
+                   axis_position(lat.lo[2], lat.hi[2], lat.n, sp.c[2], sp.s[2], sp.alpha[2], sp.uc[2], u[2]))
+
+
+@wp.func
+def near_light(lat: Lattice, node: wp.vec3, light: Emitter) -> bool:
+    """Whether a point or spot light lies within NEAR_LIGHT_CELLS cells of the node on every axis."""
+    if light.kind == DIRECTIONAL:
+        return False
+    u = lattice_coords(lat, light.position)
+    return (wp.abs(u[0] - node[0]) < NEAR_LIGHT_CELLS and wp.abs(u[1] - node[1]) < NEAR_LIGHT_CELLS and
+            wp.abs(u[2] - node[2]) < NEAR_LIGHT_CELLS)
+
+
+@wp.func
+def hat_light_direction(lat: Lattice, node: wp.vec3, light: Emitter, x: wp.vec3, sig: wp.vec3, k: int):
+    """Direction k of NEAR_DIRECTIONS from the light over the node's hat (a Fibonacci set on the cap
+    that holds the hat's bounding sphere) and the light it carries into the hat, per unit solid
+    angle and hat volume: int hat(p + r w) I(w) e^(-sigma (r - d)) dr (omega / K) / int hat dV,
+    sigma the extinction at the node and d its distance to the light (the node's own shadow ray
+    takes the rest), midpoints along the chord."""
+    lo = support_corner(lat, node, -1.0)
+    hi = support_corner(lat, node, 1.0)
+    half = wp.max(x - lo, hi - x)
+    radius = wp.length(half)
+    p = light.position
+    to = x - p
+    dist = wp.length(to)
+    axis = wp.vec3(0.0, 1.0, 0.0)
+    if dist > 0.0:
+        axis = to / dist
+    cos_max = float(-1.0)
+    if dist > radius:
+        cos_max = wp.sqrt(1.0 - (radius / dist) * (radius / dist))
+    z = 1.0 - (float(k) + 0.5) / float(NEAR_DIRECTIONS) * (1.0 - cos_max)
+    r = wp.sqrt(wp.max(1.0 - z * z, 0.0))
+    phi = GOLDEN_ANGLE * float(k)
+    t, b = orthonormal_basis(axis)
+    w = z * axis + (r * wp.cos(phi)) * t + (r * wp.sin(phi)) * b
+    volume = (hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]) / 8.0
+    t0, t1 = ray_box(p, w, lo, hi)
+    t0 = wp.max(t0, 0.0)
+    acc = wp.vec3(0.0)
+    if t1 > t0 and volume > 0.0:
+        dr = (t1 - t0) / float(NEAR_STEPS)
+        for j in range(NEAR_STEPS):
+            rr = t0 + (float(j) + 0.5) * dr
+            y = p + rr * w
+            hw = hat_weight(lat, node, y)
+            if hw > 0.0:
+                wi, dd, e = light_incident(light, y)
+                fall = wp.vec3(wp.exp(-sig[0] * (rr - dist)), wp.exp(-sig[1] * (rr - dist)),
+                               wp.exp(-sig[2] * (rr - dist)))
+                acc += (hw * dd * dd) * wp.cw_mul(e, fall)
+        acc = acc * (dr * 2.0 * PI * (1.0 - cos_max) / (float(NEAR_DIRECTIONS) * volume))
+    return w, acc
+
+
 @wp.kernel
 def light_source(offset: int, m: Media, s: Surfaces, lights: wp.array(dtype=Emitter), lat: Lattice,
-                 sigma_s: wp.array(dtype=wp.vec3), phase_count: int, shadow_steps: int, q_out: wp.array(dtype=wp.vec3)):
+                 sigma_t: wp.array(dtype=wp.vec3), sigma_s: wp.array(dtype=wp.vec3), phase_count: int,
+                 shadow_steps: int, q_out: wp.array(dtype=wp.vec3)):
     """Q_1 of the lights at node q for every direction (direction-major): sum_l sigma_s
-    p(-w_l . w_d) E_l T_l."""
+    p(-w_l . w_d) E_l T_l. The trilinear interpolant's integral is the nodes' values times their
+    hats' volumes, so a node near a point or spot light takes the source averaged over its hat
+    (``hat_light_direction``: the 1/d^2 peak is integrable, a node's own value is not, and half
+    the light a thick fog scatters first lies within a cell of the light), each direction from
+    the light scattered by its own angle; farther nodes, and every node of a graded lattice
+    (whose hats are not those of even cells; measured, they dim the image), take 1/d^2 averaged
+    over a ball of half a cell."""
     q = wp.tid() + offset
     D = lat.directions.shape[0]
     n3 = lat.n * lat.n * lat.n
     x = node_position(lat, q)
+    node = node_index(lat.n, q)
     rng = wp.uint32(0)  # unused: transmittance is marched
     for d in range(D):
         q_out[d * n3 + q] = wp.vec3(0.0)
     for l in range(lights.shape[0]):
         wi, dist, e = light_incident(lights[l], x)
+        if lat.graded == 0 and near_light(lat, node, lights[l]):
+            tr = light_transmittance(m, s, x, wi, dist, 0, rng, shadow_steps)
+            if wp.max(tr) > 0.0:
+                for k in range(NEAR_DIRECTIONS):
+                    w, carried = hat_light_direction(lat, node, lights[l], x, sigma_t[q], k)
+                    if wp.max(carried) > 0.0:
+                        et = wp.cw_mul(carried, tr)
+                        for i in range(phase_count):
+                            sig = sigma_s[i * n3 + q]
+                            if wp.max(sig) > 0.0:
+                                se = wp.cw_mul(sig, et)
+                                for d in range(D):
+                                    ph = phase_eval(m.phase[i], m.phase_table, wp.dot(w, lat.directions[d]))
+                                    q_out[d * n3 + q] = q_out[d * n3 + q] + ph * se
+            continue
         if lights[l].kind != DIRECTIONAL:
             cell = 0.5 * wp.length(cell_size(lat, x))  # the half cell 1/d^2 is averaged over: finite at the light
             e = e * (dist * dist) * ball_mean_inverse_square(cell, dist)
@@ -412,12 +531,20 @@ def light_source(offset: int, m: Media, s: Surfaces, lights: wp.array(dtype=Emit
 
 
 @wp.func
+def cell_step(width: wp.vec3, w: wp.vec3) -> float:
+    """The length along w that crosses one cell of these widths on no axis more than once."""
+    return wp.min(wp.min(width[0] / wp.max(wp.abs(w[0]), 1.0e-6), width[1] / wp.max(wp.abs(w[1]), 1.0e-6)),
+                  width[2] / wp.max(wp.abs(w[2]), 1.0e-6))
+
+
+@wp.func
 def transport_step(lat: Lattice, sigma_t: wp.array(dtype=wp.vec3), source: wp.array(dtype=wp.vec3), base: int,
                    with_source: int, xm: wp.vec3, dt: float, L: wp.vec3, tr: wp.vec3):
     """One step of a characteristic, coefficients at its midpoint xm: (L, tr) after it."""
-    sig = lattice_sample(sigma_t, 0, 1, lat, xm)
+    u = lattice_coords(lat, xm)
+    sig = lattice_at_vec3(sigma_t, 0, 1, lat.n, u)
     if with_source != 0:
-        src = lattice_sample(source, base, 1, lat, xm)
+        src = lattice_at_vec3(source, base, 1, lat.n, u)
         L += wp.cw_mul(wp.cw_mul(tr, src), step_integral_rgb(sig, dt))
     return L, wp.cw_mul(tr, transmittance_rgb(sig * dt))
 
@@ -442,14 +569,14 @@ def transport(offset: int, lat: Lattice, sigma_t: wp.array(dtype=wp.vec3), sourc
     tr = wp.vec3(1.0)
     t = float(0.0)
     if lat.graded == 0 and t_end > 0.0:  # evenly spaced: equal steps of about a cell
-        steps = wp.max(int(wp.ceil(t_end / wp.min(cell_size(lat, x)))), 1)
+        steps = wp.max(int(wp.ceil(t_end / cell_step(cell_size(lat, x), back))), 1)
         dt = t_end / float(steps)
         t = t_end
         for k in range(steps):
             L, tr = transport_step(lat, sigma_t, source, d * n3, with_source, x + ((float(k) + 0.5) * dt) * back,
                                    dt, L, tr)
     while t < t_end:  # graded: steps of the local cell
-        dt = wp.min(wp.min(cell_size(lat, x + t * back)), t_end - t)
+        dt = wp.min(cell_step(cell_size(lat, x + t * back), back), t_end - t)
         if t_end - t - dt < 1.0e-3 * dt:
             dt = t_end - t
         L, tr = transport_step(lat, sigma_t, source, d * n3, with_source, x + (t + 0.5 * dt) * back, dt, L, tr)
@@ -578,36 +705,48 @@ def enclosed(scene, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndar
     return lo, hi
 
 
-#: The lattice grades its nodes on an axis where an even cell would span more than a mean free
-#: path and the media are wider than GRADE_ABOVE times the region that matters (the camera and
-#: the lights, FOCUS_FREE_PATHS mean free paths around): e.g. a light inside fog that fills the
-#: world, where an even lattice's cells are wider than everything the camera sees.
-GRADE_ABOVE = 4.0
+#: The lattice grades its nodes on an axis where an even cell would span more than GRADE_CELL mean
+#: free paths and the media are wider than GRADE_ABOVE times the region that matters (``focus``):
+#: e.g. a light inside fog that fills the world, where an even lattice's cells are wider than
+#: everything the camera sees, or a point light in thick fog, whose first scattering lies within
+#: a cell of it.
+GRADE_ABOVE = 2.0
+GRADE_CELL = 0.5
+#: The focus's reach around the eye and the lights (the camera inside the media) and around the
+#: lights alone (the camera outside: it sees the media's near side, lit by what spreads from the
+#: lights), in mean free paths.
 FOCUS_FREE_PATHS = 0.1
+FOCUS_LIGHT_FREE_PATHS = 0.5
 
 
-def focus(scene) -> tuple:
-    """The box that matters most to the image, the camera's eye and the point and spot lights
-    FOCUS_FREE_PATHS mean free paths around, and that mean free path's extinction (the thinnest
-    homogeneous medium's); (None, None, 0) where the media are not all homogeneous (a grid's or a
-    cloud's own size is its set-up)."""
+def focus(scene, lo: np.ndarray, hi: np.ndarray) -> tuple:
+    """The box that matters most to the image and the mean free path's extinction there (the
+    thinnest homogeneous medium's): with the camera's eye inside the lattice's bounds [lo, hi],
+    the eye and the point and spot lights FOCUS_FREE_PATHS mean free paths around; with it
+    outside, the lights FOCUS_LIGHT_FREE_PATHS around. (None, None, 0) where the media are not
+    all homogeneous (a grid's or a cloud's own size is its set-up) or no box is left."""
     if not scene.media or any(mm.type != "homogeneous" for mm in scene.media):
         return None, None, 0.0
     sigma = min(float(np.min(mm.sigma_t)) for mm in scene.media)
     if sigma <= 0.0:
         return None, None, 0.0
-    points = [np.asarray(scene.camera.origin, np.float64)] + light_positions(scene)
-    points = np.array(points)
-    reach = FOCUS_FREE_PATHS / sigma
+    eye = np.asarray(scene.camera.origin, np.float64)
+    lights = light_positions(scene)
+    if np.all(eye >= lo) and np.all(eye <= hi):
+        points, reach = np.array([eye] + lights), FOCUS_FREE_PATHS / sigma
+    elif lights:
+        points, reach = np.array(lights), FOCUS_LIGHT_FREE_PATHS / sigma
+    else:
+        return None, None, 0.0
     return points.min(axis=0) - reach, points.max(axis=0) + reach, sigma
 
 
 def graded_spacing(lo: np.ndarray, hi: np.ndarray, n: int, flo, fhi, sigma: float):
     """Per axis (c, s, alpha, uc) of ``Spacing``: even (alpha 0) unless an even cell would span
-    more than a mean free path (1 / sigma) and the media's extent is over GRADE_ABOVE times the
-    focus box's (clipped to them); then node u at c + s sinh(alpha (u - uc)), centred on the
-    focus box with s its half width, so the focus gets cells of about s alpha and the far media
-    cells growing geometrically, and the nodes still span [lo, hi]."""
+    more than GRADE_CELL mean free paths (1 / sigma) and the media's extent is over GRADE_ABOVE
+    times the focus box's (clipped to them); then node u at c + s sinh(alpha (u - uc)), centred
+    on the focus box with s its half width, so the focus gets cells of about s alpha and the far
+    media cells growing geometrically, and the nodes still span [lo, hi]."""
     zero = np.zeros(3)
     c, s, alpha, uc = zero.copy(), np.ones(3), zero.copy(), zero.copy()
     if flo is None or n < 2:
@@ -615,7 +754,7 @@ def graded_spacing(lo: np.ndarray, hi: np.ndarray, n: int, flo, fhi, sigma: floa
     flo, fhi = np.maximum(flo, lo), np.minimum(fhi, hi)
     for a in range(3):
         width = fhi[a] - flo[a]
-        if width <= 0.0 or hi[a] - lo[a] <= GRADE_ABOVE * width or (hi[a] - lo[a]) / (n - 1) * sigma <= 1.0:
+        if width <= 0.0 or hi[a] - lo[a] <= GRADE_ABOVE * width or (hi[a] - lo[a]) / (n - 1) * sigma <= GRADE_CELL:
             continue
         c[a], s[a] = 0.5 * (flo[a] + fhi[a]), 0.5 * width
         a0, a1 = np.arcsinh((lo[a] - c[a]) / s[a]), np.arcsinh((hi[a] - c[a]) / s[a])
@@ -679,10 +818,10 @@ class MultipleScattering:
         lat = Lattice()
         lat.n = n
         lo, hi = np.array(m.all_min, np.float64), np.array(m.all_max, np.float64)
-        pad = 1.0e-4 * max(float(np.max(hi - lo)), 1.0e-6)
+        pad = LATTICE_PAD * max(float(np.max(hi - lo)), 1.0e-6)
         lo, hi = enclosed(self.t.scene, lo - pad, hi + pad)
         lat.lo, lat.hi = wp.vec3(*lo), wp.vec3(*hi)
-        c, s, alpha, uc = graded_spacing(lo, hi, n, *focus(self.t.scene))
+        c, s, alpha, uc = graded_spacing(lo, hi, n, *focus(self.t.scene, lo, hi))
         lat.spacing = Spacing()
         lat.spacing.c, lat.spacing.s, lat.spacing.alpha, lat.spacing.uc = (wp.vec3(*v) for v in (c, s, alpha, uc))
         lat.graded = int(np.any(alpha > 0.0))
@@ -713,7 +852,7 @@ class MultipleScattering:
                    device, work=4.0 + lights.shape[0])
         reflects = bool(scene.surfaces) and bool(np.any(ends.face.numpy() >= 0))
         source = wp.empty(size, dtype=wp.vec3, device=device)
-        dev.launch(light_source, n3, [m, surfaces, lights, lat, self.sigma_s, M, shadow_steps, source],
+        dev.launch(light_source, n3, [m, surfaces, lights, lat, sigma_t, self.sigma_s, M, shadow_steps, source],
                    device, work=max(1, lights.shape[0]) * (4.0 * lat.n + D))
         L = wp.empty(size, dtype=wp.vec3, device=device)
         starts = wp.zeros(size, dtype=wp.vec3, device=device)  # what each characteristic starts with, this order
@@ -746,7 +885,10 @@ class MultipleScattering:
                 r = np.where(previous > 0.0, energy / np.maximum(previous, 1e-300), 0.0)
                 # a ratio at the cap (light still spreading, order after order, as early in an
                 # albedo-1 medium) is no ratio to extrapolate from: iterate on
-                settled = np.all(np.abs(r - ratio) <= SETTLED * np.maximum(r, 1e-12)) and np.all(r < MAX_RATIO)
+                change = np.abs(r - ratio)
+                # or the tail's uncertainty from that change, L_k dr / (1 - r)^2, is a small part of the whole
+                settled = np.all(r < MAX_RATIO) and (np.all(change <= SETTLED * np.maximum(r, 1e-12)) or np.all(
+                    change * energy <= TAIL_SETTLED * (1.0 - r) ** 2 * total_energy))
                 done = np.all(energy <= 1.0e-6 * total_energy) or settled
                 ratio = r
                 if done:

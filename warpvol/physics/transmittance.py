@@ -39,6 +39,9 @@ def step_integral(sigma_t: float, dt: float) -> float:
 
 @wp.func
 def step_integral_rgb(sigma_t: wp.vec3, dt: float) -> wp.vec3:
+    """``step_integral`` per channel; one exp where the three are equal (a grey medium)."""
+    if sigma_t[0] == sigma_t[1] and sigma_t[1] == sigma_t[2]:
+        return wp.vec3(step_integral(sigma_t[0], dt))
     return wp.vec3(step_integral(sigma_t[0], dt), step_integral(sigma_t[1], dt), step_integral(sigma_t[2], dt))
 
 
