@@ -175,12 +175,9 @@ class Technique:
         gather (``sky_samples`` = 0, or no such setting) and no multiple-scattering lattice
         approximates (``multiple_scattering`` = 0)."""
         out = list(self.LEAVES_OUT)
-        if has_sky(self.scene) and not self.gathers_sky:
-            if self.settings.get("multiple_scattering", 0) > 0:  # the lattice carries it over the media
-                if self.scene.surfaces and self.settings.get("sky_samples", 0) == 0:
-                    out.append("the sky's light reflected by surfaces beyond the media's bounds")
-            else:
-                out.append("the sky's light (the background) scattered in the media or reflected by surfaces")
+        # with the lattice on, it carries the sky over the media and lights the surfaces beyond them
+        if has_sky(self.scene) and not self.gathers_sky and not self.settings.get("multiple_scattering", 0):
+            out.append("the sky's light (the background) scattered in the media or reflected by surfaces")
         return out
 
     #: True: the technique gathers the sky's light whatever its settings (e.g. by following paths).

@@ -63,14 +63,14 @@ from .geometry.mesh import Surfaces, surface_hit
 from .physics.brdf import Material
 from .media.grid import lattice_at_vec3, lattice_cell, trilinear_weights
 from .media.volume import Media, medium_sigma_t
-from .physics.constants import INF, PI, RAY_EPS
+from .physics.constants import INF, PI
 from .physics.lights import DIRECTIONAL, Emitter, ball_mean_inverse_square, light_incident
 from .physics.phase import phase_eval
 from .physics.sampling import orthonormal_basis
 from .physics.sphere import fibonacci_directions
 from .physics.transmittance import step_integral_rgb, transmittance_rgb
 from .pipeline import Bias, Frame, Setting, SettingsError, Stage
-from .shading import light_transmittance, reflected, surface_direct
+from .shading import light_transmittance, reflected, sky_along_normal, surface_direct
 from .upload import MediaBuffers
 
 dev.kernel_module(__name__)
@@ -142,6 +142,9 @@ class ScatteredLight:
     lat: Lattice
     values: wp.array(dtype=wp.vec3)
     field: wp.array(dtype=wp.vec3)  # L_{>=1}(x, w_d), n^3 x D, for surfaces
+    m: Media  # for the sky's light on surfaces beyond the field
+    sky: wp.vec3  # the sky's radiance where the technique does not light surfaces with it itself, else 0
+    steps: int  # the shadow rays' midpoints
 
 
 @wp.func
@@ -275,13 +278,19 @@ def field_reaches(sl: ScatteredLight, p: wp.vec3) -> bool:
 
 
 @wp.func
-def scattered_on_surface(sl: ScatteredLight, mat: Material, p: wp.vec3, n: wp.vec3, wo: wp.vec3) -> wp.vec3:
+def scattered_on_surface(sl: ScatteredLight, s: Surfaces, mat: Material, p: wp.vec3, n: wp.vec3,
+                         wo: wp.vec3) -> wp.vec3:
     """What a surface at p (normal n facing wo) reflects toward wo of the light the media have
-    scattered and the surfaces have reflected (``reflected_field`` of L_{>=1}); zero where the
-    field does not reach (``field_reaches``)."""
-    if not field_reaches(sl, p):
+    scattered and the surfaces have reflected (``reflected_field`` of L_{>=1}); where the field
+    does not reach (``field_reaches``: a floor beyond the fog), the sky's light (``sky_along_normal``)
+    unless the technique gathers it there itself; zero without the term."""
+    if sl.lat.n == 0:
         return wp.vec3(0.0)
-    return reflected_field(sl.field, sl.lat, mat, p, n, wo)
+    if field_reaches(sl, p):
+        return reflected_field(sl.field, sl.lat, mat, p, n, wo)
+    if wp.max(sl.sky) > 0.0:
+        return sky_along_normal(sl.m, s, mat, p, n, sl.sky, sl.steps)
+    return wp.vec3(0.0)
 
 
 @wp.kernel
@@ -362,8 +371,7 @@ def characteristics(offset: int, m: Media, s: Surfaces, lights: wp.array(dtype=E
         if not inside_margin(lat.lo, lat.hi, wp.min(cell_size(lat, p)), p):
             ends.face[tid] = -2
             if wp.max(sky) > 0.0:
-                up = light_transmittance(m, s, p + RAY_EPS * nf, nf, INF, 0, rng, shadow_steps)
-                start += wp.cw_mul(wp.cw_mul(mat.diffuse, sky), up)
+                start += sky_along_normal(m, s, mat, p, nf, sky, shadow_steps)
     ends.length[tid] = t
     ends.start[tid] = start
 
@@ -918,6 +926,10 @@ class MultipleScattering:
         sl = ScatteredLight()
         if self.n > 0 and self.view is not None:
             sl.lat, sl.values, sl.field = self.lattice, self.view, self.L
+            sl.m, sl.steps = self._m, max(2 * self.lattice.n, 16)
+            # the sky on surfaces beyond the field, unless the technique's own sky directions light them
+            own = self.t.settings.get("sky_samples", 0) > 0
+            sl.sky = wp.vec3(0.0) if own else wp.vec3(*self.t.scene.background)
         else:
             sl.lat = Lattice()
             sl.lat.n, sl.lat.graded, sl.lat.spacing = 0, 0, Spacing()

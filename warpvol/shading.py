@@ -63,6 +63,17 @@ def light_transmittance(m: Media, s: Surfaces, x: wp.vec3, wi: wp.vec3, dist: fl
 
 
 @wp.func
+def sky_along_normal(m: Media, s: Surfaces, mat: Material, p: wp.vec3, n: wp.vec3, sky: wp.vec3,
+                     march_steps: int) -> wp.vec3:
+    """The light of a uniform sky of radiance ``sky`` that a surface at p (normal n) reflects, as a
+    Lambertian rho L, dimmed by what lies along its normal (one shadow ray for the hemisphere:
+    exact for an unshadowed diffuse surface, the sky's own directions are not gathered)."""
+    rng = wp.uint32(0)  # unused: transmittance is marched
+    up = light_transmittance(m, s, p + RAY_EPS * n, n, INF, 0, rng, march_steps)
+    return wp.cw_mul(wp.cw_mul(mat.diffuse, sky), up)
+
+
+@wp.func
 def camera_segment(m: Media, s: Surfaces, o: wp.vec3, d: wp.vec3):
     """What a camera ray o + t d meets: the first surface (hit, t_surf, its normal and face) and
     the span [ta, tb) of the media's box in front of it (empty where ta >= tb)."""

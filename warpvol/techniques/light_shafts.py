@@ -222,7 +222,7 @@ def shade_visible_surface(offset: int, cam: RasterView, m: Media, s: Surfaces, s
         n = wp.where(wp.dot(n, d) < 0.0, n, -n)
         p = o + t * d + RAY_EPS * n
         L = surface_through_maps(m, sl, p, n, -d, s.material[f], tau_v, shadow_steps)
-        L += wp.cw_mul(transmittance_rgb(tau_v), scattered_on_surface(ms, s.material[f], p, n, -d))
+        L += wp.cw_mul(transmittance_rgb(tau_v), scattered_on_surface(ms, s, s.material[f], p, n, -d))
     radiance[tid] = L
 
 

@@ -247,7 +247,7 @@ def march_glow(offset: int, cam: RasterView, m: Media, s: Surfaces, sl: Shadowed
         nf = wp.where(wp.dot(n, d) < 0.0, n, -n)
         p = o + t_surf * d
         Ls = surface_through_maps(m, sl, p, nf, -d, s.material[face], wp.vec3(0.0), gs.shadow_steps)
-        L += wp.cw_mul(tr, Ls + scattered_on_surface(ms, s.material[face], p, nf, -d))
+        L += wp.cw_mul(tr, Ls + scattered_on_surface(ms, s, s.material[face], p, nf, -d))
     else:
         L += wp.cw_mul(tr, background)
     image[tid] = L

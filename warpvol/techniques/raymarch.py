@@ -214,7 +214,7 @@ def march_single_scattering(offset: int, cam: RasterView, m: Media, s: Surfaces,
         nf = wp.where(wp.dot(n, d) < 0.0, n, -n)
         p = o + t_surf * d
         Ls = surface_direct(m, s, lights, p, nf, -d, s.material[face], 0, rng, st.shadow_steps)
-        Ls += scattered_on_surface(ms, s.material[face], p, nf, -d)
+        Ls += scattered_on_surface(ms, s, s.material[face], p, nf, -d)
         if sky.directions.shape[0] > 0 and not field_reaches(ms, p):  # beyond the lattice's field
             Ls += sky_on_surface(m, s, sky, p, nf, -d, face, st, baked)
         L += wp.cw_mul(tr, Ls)

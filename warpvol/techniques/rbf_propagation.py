@@ -510,7 +510,7 @@ def march_volumes(offset: int, cam: RasterView, s: Surfaces, lights: wp.array(dt
             if cos_l > 0.0:
                 tl = transmittance_rgb(surface_optical_depth(opv, n_lights, l, v, p, wi, dist))
                 L += wp.cw_mul(tr, reflected(s.material[face], nf, -d, wi, cos_l, e, tl))
-        L += wp.cw_mul(tr, scattered_on_surface(ms, s.material[face], p, nf, -d))
+        L += wp.cw_mul(tr, scattered_on_surface(ms, s, s.material[face], p, nf, -d))
     else:
         L += wp.cw_mul(tr, background)
     image[tid] = L
