@@ -927,9 +927,8 @@ class MultipleScattering:
         if self.n > 0 and self.view is not None:
             sl.lat, sl.values, sl.field = self.lattice, self.view, self.L
             sl.m, sl.steps = self._m, max(2 * self.lattice.n, 16)
-            # the sky on surfaces beyond the field, unless the technique's own sky directions light them
-            own = self.t.settings.get("sky_samples", 0) > 0
-            sl.sky = wp.vec3(0.0) if own else wp.vec3(*self.t.scene.background)
+            # the sky on surfaces beyond the field, unless the technique gathers the sky itself
+            sl.sky = wp.vec3(0.0) if self.t.gathers_sky else wp.vec3(*self.t.scene.background)
         else:
             sl.lat = Lattice()
             sl.lat.n, sl.lat.graded, sl.lat.spacing = 0, 0, Spacing()

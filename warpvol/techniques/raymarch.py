@@ -14,10 +14,12 @@ phase function, shadow and falloff: a coarse march no longer misses the light's 
 rows of results/multiple-scattering).
 Surfaces are lit directly. The sky (the background radiance) is a light
 too. With the multiple-scattering lattice on (the default) the lattice carries it, every order
-of it, in the media and on the surfaces its field reaches; surfaces beyond the field (a floor
-past a cloud) gather it from ``sky_samples`` directions over the sphere (``upload.sky_lights``)
-as pi f L_sky sum_k cos_k T_k / sum_k cos_k. Without the lattice its single scattering is also
-gathered at every step from those directions, sum_k sigma_s p_k T_k / sum_k sigma_s p_k times
+of it, in the media and on the surfaces its field reaches, and lights the surfaces beyond the
+field (a floor past a cloud) with the sky seen along their normal (``shading.sky_along_normal``,
+as every marcher's lattice does; measured closer to the reference than 8 directions on haze under
+a sky, 0.017 against 0.036). Without the lattice, surfaces gather it from ``sky_samples``
+directions over the sphere (``upload.sky_lights``) as pi f L_sky sum_k cos_k T_k / sum_k cos_k,
+and its single scattering at every step from those directions, sum_k sigma_s p_k T_k / sum_k sigma_s p_k times
 sigma_s L_sky: exact where nothing shadows the point, the error of the shadowed part falling as
 the directions grow, at the price of a march toward each direction at every step (the cost that
 the lattice removes; results/defaults). Each sky direction's transmittance is marched with an
@@ -61,7 +63,7 @@ from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..pipeline import Bias, Quality, Setting, SettingsError, Stage, Technique
 from ..scattering import BIASES as MS_BIASES
 from ..scattering import SETTINGS as MS_SETTINGS
-from ..scattering import MultipleScattering, ScatteredLight, field_reaches, scattered_light, scattered_on_surface
+from ..scattering import MultipleScattering, ScatteredLight, scattered_light, scattered_on_surface
 from ..scattering import check_settings as check_ms_settings
 from ..scattering import leaves_out as ms_leaves_out
 from ..shading import (baked_light_depth, bakes_light_depth, camera_segment, light_depth_volume, light_transmittance,
@@ -77,9 +79,9 @@ SETTINGS = {
     "step_length": Setting(0.0, 0.0, 1.0e6, "step length in scene units; 0 = use steps"),
     "shadow_steps": Setting(32, 1, 1 << 20, "steps along each ray toward a light through grid media (the others: closed form)"),
     "sky_samples": Setting(8, 0, 4096, "directions the sky's light (the background) is gathered from, each marched "
-                                       "like a light: on surfaces beyond the multiple-scattering lattice's field, and "
-                                       "at every step too when the lattice is off (multiple_scattering = 0); 0: left "
-                                       "out there"),
+                                       "like a light, on surfaces and at every step, when the multiple-scattering "
+                                       "lattice is off (multiple_scattering = 0; on, the lattice carries the sky); "
+                                       "0: left out"),
     **MS_SETTINGS,
     **EXTINCTION_SETTINGS,
     **LIGHT_VOLUME_SETTINGS,
@@ -215,7 +217,7 @@ def march_single_scattering(offset: int, cam: RasterView, m: Media, s: Surfaces,
         p = o + t_surf * d
         Ls = surface_direct(m, s, lights, p, nf, -d, s.material[face], 0, rng, st.shadow_steps)
         Ls += scattered_on_surface(ms, s, s.material[face], p, nf, -d)
-        if sky.directions.shape[0] > 0 and not field_reaches(ms, p):  # beyond the lattice's field
+        if sky.directions.shape[0] > 0:  # the lattice off (on, it lights the surfaces with the sky)
             Ls += sky_on_surface(m, s, sky, p, nf, -d, face, st, baked)
         L += wp.cw_mul(tr, Ls)
     else:
@@ -246,9 +248,9 @@ class Raymarch(Technique):
 
     @property
     def gathers_sky(self) -> bool:
-        """The sky's directions are gathered at every step only without the lattice: with it,
-        the lattice carries the sky's light (all orders, the media's shadows on it included)
-        and ``sky_samples`` serves the surfaces beyond its field."""
+        """The sky's directions are gathered only without the lattice: with it, the lattice
+        carries the sky's light (all orders, the media's shadows on it included) and lights the
+        surfaces beyond its field."""
         return self.settings["sky_samples"] > 0 and self.multiple.n == 0
 
     def diagnostics(self) -> dict:
@@ -278,10 +280,13 @@ class Raymarch(Technique):
         """What the light volume bakes, in this order: the scene's lights, and the sky's directions
         where the march gathers them at every step (not where the lattice carries the sky: a
         surface beyond its field is marched to)."""
-        return light_structs(self.scene) + (self._sky() if self.multiple.n == 0 else [])
+        return light_structs(self.scene) + self._sky()
 
     def _sky(self) -> list:
-        return sky_light_structs(self.scene.background, self.settings["sky_samples"]) if self.scene.media else []
+        """The sky's directions, where the march gathers them (the lattice off)."""
+        if not self.scene.media or self.multiple.n > 0:
+            return []
+        return sky_light_structs(self.scene.background, self.settings["sky_samples"])
 
     def stages(self):
         return self.uploads.stages() + [
