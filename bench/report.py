@@ -474,6 +474,20 @@ def multiple_section(rows: list[dict], png: Path) -> list[str]:
                          f"{r['median_ms']:.0f} | {e:.4f} | {order} | {sc.get('ms_orders', '–')}, {tail} | "
                          f"{t_ref:.0f} ms | {r['median_ms'] / t_ref:.3f} |")
             prev = e
+        rich = [r for r in rows if r["params"]["family"] == family and r["params"]["technique"] == "raymarch"
+                and set(r["params"]) == {"family", "technique", "multiple_scattering", "ms_directions", "steps"}
+                and r["params"]["ms_directions"] >= 4 * r["params"]["multiple_scattering"]]
+        if rich:
+            lines += ["", "With four directions a node axis (the floor above is the directions' quadrature) and the "
+                      "march's steps given:", "",
+                      "| multiple_scattering, ms_directions, steps | ms / frame | relative RMSE "
+                      "| the reference's time to it | ratio |", "|---|---|---|---|---|"]
+            for r in rich:
+                e = r["rel_rmse_corrected"]
+                t_ref = best["median_ms"] * (best["rel_rmse_corrected"] / max(e, 1e-6)) ** 2
+                p = r["params"]
+                lines.append(f"| {p['multiple_scattering']}, {p['ms_directions']}, {p['steps']} | {r['median_ms']:.0f} "
+                             f"| {e:.4f} | {t_ref:.0f} ms | {r['median_ms'] / t_ref:.3f} |")
         lines += ["", "| reference spp | ms / frame | relative RMSE |", "|---|---|---|"]
         lines += [f"| {r['params']['spp']} | {r['median_ms']:.0f} | {r['rel_rmse_corrected']:.4f} |" for r in refs]
     lines += ["", "Every row:", ""] + _front_plot_and_table(rows, png)
