@@ -154,3 +154,38 @@ def test_a_warning_is_one_line_of_the_tools_own(tmp_path):
     warned = [line for line in r.stderr.splitlines() if "warning" in line.lower()]
     assert len(warned) == 1 and warned[0].startswith("warpvol: warning: raymarch: error estimate"), r.stderr
     assert "cli.py" not in r.stderr and "wv.render(" not in r.stderr
+
+
+def test_the_demo_captions_each_half(tmp_path):
+    """demo: the two halves side by side (a 4-pixel gap) and, under each, its caption in the
+    5 x 7 font (``image.text_mask``): two lines, 9 font pixels each plus a 2-pixel margin, white
+    ink (1 at the image's exposure) on black; the caption's first letter is the technique's."""
+    from warpvol.image import FONT, text_mask
+
+    out = tmp_path / "demo.npy"
+    r = run("demo", "--set", "camera.width=40", "--set", "camera.height=30", "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    image = np.load(out)
+    assert image.shape == (30 + 20, 2 * 40 + 4, 3)
+    caption = image[30:, :40, 0]
+    ink = caption > 0
+    assert np.allclose(caption[ink], caption[ink].max())  # one ink value
+    letter = ink[2:9, 2:7].astype(int)  # "L" of light_shafts
+    np.testing.assert_array_equal(letter, text_mask(["L"], 7)[2:9, 2:7].astype(int))
+    np.testing.assert_array_equal(letter @ (1 << np.arange(4, -1, -1)), FONT["L"])
+    reference = image[30:, 44:, 0] > 0
+    np.testing.assert_array_equal(reference[2:9, 2:7].astype(int) @ (1 << np.arange(4, -1, -1)), FONT["R"])
+
+
+def test_text_is_cut_at_the_width_and_unknown_characters_shown():
+    from warpvol.image import FONT, text_mask
+
+    m = text_mask(["AAAA", "#"], 14)  # two characters fit in 14 pixels (each 6 wide, from 2 in)
+    assert m.shape == (2 + 2 * 9, 14)
+    bits = lambda rows: ((np.array(rows)[:, None] >> np.arange(4, -1, -1)) & 1)
+    np.testing.assert_array_equal(m[2:9, 2:7], bits(FONT["A"]))
+    np.testing.assert_array_equal(m[2:9, 8:13], bits(FONT["A"]))
+    assert m[2:9, 13:].sum() == 0
+    np.testing.assert_array_equal(m[11:18, 2:7], bits(FONT["?"]))
+    big = text_mask(["1"], 20, scale=2)
+    np.testing.assert_array_equal(big[4:18:2, 4:14:2], bits(FONT["1"]))

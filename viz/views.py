@@ -171,10 +171,13 @@ def scene_plotter(scene, off_screen: bool = False, window_size=(960, 720), resol
         plotter.add_mesh(surfaces, scalars="diffuse", rgb=True, opacity=0.6)
     for medium in scene.media:
         _medium_actor(plotter, scene, medium, resolution)
-    for mesh, colour in light_glyphs(scene, size=0.05 * _extent(scene)):
-        plotter.add_mesh(mesh, color=colour)
+    for (mesh, colour), light in zip(light_glyphs(scene, size=0.05 * _extent(scene)), scene.lights):
+        # a spot's cone is see-through (what sits under the lamp stays visible), its edges drawn
+        spot = light.type == "spot"
+        plotter.add_mesh(mesh, color=colour, opacity=0.35 if spot else 1.0, show_edges=spot, edge_color=colour)
     plotter.add_mesh(camera_frustum(scene.camera), color="yellow", line_width=2)
-    plotter.add_text(scene.name, font_size=10)
+    # the title placed in pixels inside the top edge (the corner anchor cut its top off)
+    plotter.add_text(scene.name, position=(10, window_size[1] - 28), font_size=10, name="title")
     # look from behind the scene camera's right shoulder, then fit everything in view
     c = scene.camera
     fwd = np.subtract(c.target, c.origin) / np.linalg.norm(np.subtract(c.target, c.origin))

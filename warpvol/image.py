@@ -17,6 +17,46 @@ def tonemap(image: np.ndarray, exposure: float = 0.0) -> np.ndarray:
     return np.round(srgb * 255.0).astype(np.uint8)
 
 
+#: A 5 x 7 bitmap font (rows top to bottom, 5 bits each, the high bit leftmost) for captions
+#: burned into images: upper-case letters (lower case is drawn in upper case), digits and a few signs.
+FONT = {
+    "A": (14, 17, 17, 31, 17, 17, 17), "B": (30, 17, 17, 30, 17, 17, 30), "C": (14, 17, 16, 16, 16, 17, 14),
+    "D": (30, 17, 17, 17, 17, 17, 30), "E": (31, 16, 16, 30, 16, 16, 31), "F": (31, 16, 16, 30, 16, 16, 16),
+    "G": (14, 17, 16, 23, 17, 17, 15), "H": (17, 17, 17, 31, 17, 17, 17), "I": (14, 4, 4, 4, 4, 4, 14),
+    "J": (7, 2, 2, 2, 2, 18, 12), "K": (17, 18, 20, 24, 20, 18, 17), "L": (16, 16, 16, 16, 16, 16, 31),
+    "M": (17, 27, 21, 21, 17, 17, 17), "N": (17, 17, 25, 21, 19, 17, 17), "O": (14, 17, 17, 17, 17, 17, 14),
+    "P": (30, 17, 17, 30, 16, 16, 16), "Q": (14, 17, 17, 17, 21, 18, 13), "R": (30, 17, 17, 30, 20, 18, 17),
+    "S": (15, 16, 16, 14, 1, 1, 30), "T": (31, 4, 4, 4, 4, 4, 4), "U": (17, 17, 17, 17, 17, 17, 14),
+    "V": (17, 17, 17, 17, 17, 10, 4), "W": (17, 17, 17, 21, 21, 21, 10), "X": (17, 17, 10, 4, 10, 17, 17),
+    "Y": (17, 17, 17, 10, 4, 4, 4), "Z": (31, 1, 2, 4, 8, 16, 31),
+    "0": (14, 17, 19, 21, 25, 17, 14), "1": (4, 12, 4, 4, 4, 4, 14), "2": (14, 17, 1, 2, 4, 8, 31),
+    "3": (31, 2, 4, 2, 1, 17, 14), "4": (2, 6, 10, 18, 31, 2, 2), "5": (31, 16, 30, 1, 1, 17, 14),
+    "6": (6, 8, 16, 30, 17, 17, 14), "7": (31, 1, 2, 4, 8, 8, 8), "8": (14, 17, 17, 14, 17, 17, 14),
+    "9": (14, 17, 17, 15, 1, 2, 12),
+    " ": (0,) * 7, ".": (0, 0, 0, 0, 0, 12, 12), ",": (0, 0, 0, 0, 12, 4, 8), ":": (0, 12, 12, 0, 12, 12, 0),
+    "-": (0, 0, 0, 31, 0, 0, 0), "_": (0, 0, 0, 0, 0, 0, 31), "%": (24, 25, 2, 4, 8, 19, 3),
+    "=": (0, 0, 31, 0, 31, 0, 0), "(": (2, 4, 8, 8, 8, 4, 2), ")": (8, 4, 2, 2, 2, 4, 8),
+    "/": (0, 1, 2, 4, 8, 16, 0), "+": (0, 4, 4, 31, 4, 4, 0), "?": (14, 17, 1, 2, 4, 0, 4),
+}
+
+
+def text_mask(lines: list[str], width: int, scale: int = 1) -> np.ndarray:
+    """Lines of text as a (7 s + 2 s) * len(lines) + 2 s by ``width`` float32 mask (1 where ink),
+    in ``FONT`` at ``scale`` s pixels a font pixel, each character 6 s wide, from 2 s in; what passes
+    the width is cut, a character not in the font is drawn as "?"."""
+    s = max(1, int(scale))
+    mask = np.zeros((9 * s * len(lines) + 2 * s, width), np.float32)
+    for i, line in enumerate(lines):
+        for j, ch in enumerate(line.upper()):
+            x0, y0 = 2 * s + 6 * s * j, 2 * s + 9 * s * i
+            if x0 + 5 * s > width:
+                break
+            rows = np.array(FONT.get(ch, FONT["?"]))
+            bits = ((rows[:, None] >> np.arange(4, -1, -1)[None, :]) & 1).astype(np.float32)
+            mask[y0 : y0 + 7 * s, x0 : x0 + 5 * s] = np.kron(bits, np.ones((s, s), np.float32))
+    return mask
+
+
 def png_bytes(rgb8: np.ndarray) -> bytes:
     """An H x W x 3 uint8 image as PNG file bytes."""
     h, w, _ = rgb8.shape
