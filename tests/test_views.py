@@ -32,6 +32,12 @@ def test_view_screenshot_of_each_builtin_scene(device, name, tmp_path):
     assert w > 100 and h > 100
     # the frustum, the media and the surfaces cover far more than 2% of the picture
     assert not_blank(img) > 0.02
+    # the scene's name in the top-left corner (VTK's rows run bottom-up), in ink that shows on the
+    # background: white on a dark one, black on a bright one
+    corner = img[-32:, :160, :3].astype(int)
+    bright = sum(wv.load_scene(name).background) > 1.5
+    ink = np.all(corner <= 5, axis=-1) if bright else np.all(corner >= 250, axis=-1)
+    assert ink.sum() >= 10
 
 
 def test_volume_grid_keeps_the_extinction_layout(device):

@@ -177,7 +177,8 @@ def scene_plotter(scene, off_screen: bool = False, window_size=(960, 720), resol
         plotter.add_mesh(mesh, color=colour, opacity=0.35 if spot else 1.0, show_edges=spot, edge_color=colour)
     plotter.add_mesh(camera_frustum(scene.camera), color="yellow", line_width=2)
     # the title placed in pixels inside the top edge (the corner anchor cut its top off)
-    plotter.add_text(scene.name, position=(10, window_size[1] - 28), font_size=10, name="title")
+    ink = "black" if sum(scene.background) > 1.5 else "white"  # against the background drawn
+    plotter.add_text(scene.name, position=(10, window_size[1] - 28), font_size=10, color=ink, name="title")
     # look from behind the scene camera's right shoulder, then fit everything in view
     c = scene.camera
     fwd = np.subtract(c.target, c.origin) / np.linalg.norm(np.subtract(c.target, c.origin))
