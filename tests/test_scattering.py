@@ -338,3 +338,31 @@ def test_nodes_on_the_lattice_boundary_hold_the_media(device):
     })
     _, sigma_t, _ = _first_source(scene, 5, 8, device)
     np.testing.assert_allclose(sigma_t, 1.5, rtol=1e-6)
+
+
+def test_a_camera_inside_fog_grades_only_what_even_cells_cannot_resolve():
+    """focus and graded_spacing with the eye inside the media: a lamp in fog that fills the world
+    (even cells far wider than everything the camera sees) is graded; a box of fog 9 mean free
+    paths wide around the camera, whose even cells come near resolving the camera-to-lamp region,
+    keeps even nodes (measured: 0.34 graded, 0.13 even against the all-orders reference); with
+    the eye outside, a lamp in thick fog is graded around the lamp, and a lamp outside the media
+    gives no focus at all."""
+    from warpvol.scattering import focus, graded_spacing
+
+    def alpha(scene, n=8):
+        lo, hi = np.full(3, -scene["half"]), np.full(3, scene["half"])
+        s = wv.load_scene({k: v for k, v in scene.items() if k != "half"})
+        return graded_spacing(lo, hi, n, *focus(s, lo, hi))[2]
+
+    cam = lambda o, t: {"origin": o, "target": t, "fov_y": 40, "width": 4, "height": 3}
+    fog = lambda half, sigma: [{"type": "homogeneous", "shape": "box", "size": [2 * half] * 3, "sigma_t": sigma,
+                                "albedo": 0.9}]
+    lamp = lambda p: [{"type": "point", "position": p, "intensity": 1.0}]
+    world = {"half": 50.0, "camera": cam([0, 0, 0], [0, 0, -1]), "lights": lamp([0.4, 0.2, -2.0]), "media": fog(50, 0.3)}
+    box = {"half": 3.0, "camera": cam([0, 0, 2], [0, 0, -1]), "lights": lamp([0.5, 0.5, -1.0]), "media": fog(3, 1.5)}
+    thick = {"half": 1.0, "camera": cam([0, 0, 4], [0, 0, 0]), "lights": lamp([0.3, 0.7, 0.2]), "media": fog(1, 2.4)}
+    outside = {**thick, "lights": lamp([2.0, 1.5, 0.0])}
+    assert np.all(alpha(world) > 0.0)
+    assert not np.any(alpha(box))
+    assert np.all(alpha(thick) > 0.0)
+    assert not np.any(alpha(outside))

@@ -433,6 +433,30 @@ def support_corner(lat: Lattice, node: wp.vec3, side: float) -> wp.vec3:
 
 
 @wp.func
+def hat_volume(lat: Lattice, node: wp.vec3) -> float:
+    """int hat dV of the node at lattice coordinates ``node``: per axis its two sides'
+    int (1 - |v|) dx/du dv, dx/du = s alpha cosh(alpha (u - uc)) where graded (with a = alpha (i - uc),
+    s alpha e^(+-a) (e^(+-alpha) - 1 -+ alpha) / (2 alpha^2) and the mirror terms), half a cell a
+    side where even; one side only on the lattice's boundary."""
+    sp = lat.spacing
+    v = float(1.0)
+    for k in range(3):
+        lo_side = wp.where(node[k] > 0.0, 1.0, 0.0)
+        hi_side = wp.where(node[k] < float(lat.n - 1), 1.0, 0.0)
+        al = sp.alpha[k]
+        if al == 0.0:
+            v *= 0.5 * (lo_side + hi_side) * (lat.hi[k] - lat.lo[k]) / float(lat.n - 1)
+        else:
+            a = al * (node[k] - sp.uc[k])
+            up = wp.exp(al) - 1.0 - al  # int_0^1 (1 - v) e^(alpha v) dv alpha^2
+            down = wp.exp(-al) - 1.0 + al
+            right = 0.5 * (wp.exp(a) * up + wp.exp(-a) * down)
+            left = 0.5 * (wp.exp(a) * down + wp.exp(-a) * up)
+            v *= sp.s[k] * (lo_side * left + hi_side * right) / al
+    return v
+
+
+@wp.func
 def near_light(lat: Lattice, node: wp.vec3, light: Emitter) -> bool:
     """Whether a point or spot light lies within NEAR_LIGHT_CELLS cells of the node on every axis."""
     if light.kind == DIRECTIONAL:
@@ -467,7 +491,7 @@ def hat_light_direction(lat: Lattice, node: wp.vec3, light: Emitter, x: wp.vec3,
     phi = GOLDEN_ANGLE * float(k)
     t, b = orthonormal_basis(axis)
     w = z * axis + (r * wp.cos(phi)) * t + (r * wp.sin(phi)) * b
-    volume = (hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]) / 8.0
+    volume = hat_volume(lat, node)
     t0, t1 = ray_box(p, w, lo, hi)
     t0 = wp.max(t0, 0.0)
     acc = wp.vec3(0.0)
@@ -720,6 +744,12 @@ def enclosed(scene, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndar
 #: a cell of it.
 GRADE_ABOVE = 2.0
 GRADE_CELL = 0.5
+#: With the eye inside the media, an axis is graded only where an even cell is also wider than
+#: this many times the focus (the nodes could not resolve what the camera sees at all: a lamp in
+#: fog that fills the world, cells 5 times the focus); where even cells come near resolving it,
+#: grading measured worse (a box of fog 9 mean free paths wide around the camera: 0.34 graded,
+#: 0.13 even).
+GRADE_EYE_CELLS = 2.0
 #: The focus's reach around the eye and the lights (the camera inside the media) and around the
 #: lights alone (the camera outside: it sees the media's near side, lit by what spreads from the
 #: lights), in mean free paths.
@@ -728,31 +758,36 @@ FOCUS_LIGHT_FREE_PATHS = 0.5
 
 
 def focus(scene, lo: np.ndarray, hi: np.ndarray) -> tuple:
-    """The box that matters most to the image and the mean free path's extinction there (the
-    thinnest homogeneous medium's): with the camera's eye inside the lattice's bounds [lo, hi],
-    the eye and the point and spot lights FOCUS_FREE_PATHS mean free paths around; with it
-    outside, the lights FOCUS_LIGHT_FREE_PATHS around. (None, None, 0) where the media are not
-    all homogeneous (a grid's or a cloud's own size is its set-up) or no box is left."""
+    """The box that matters most to the image, the mean free path's extinction there (the
+    thinnest homogeneous medium's) and whether the eye is inside: with the camera's eye inside
+    the lattice's bounds [lo, hi], the eye and the point and spot lights FOCUS_FREE_PATHS mean
+    free paths around; with it outside, the lights FOCUS_LIGHT_FREE_PATHS around (lights inside
+    the bounds only).
+    (None, None, 0, False) where the media are not all homogeneous (a grid's or a cloud's own
+    size is its set-up) or no box is left."""
     if not scene.media or any(mm.type != "homogeneous" for mm in scene.media):
-        return None, None, 0.0
+        return None, None, 0.0, False
     sigma = min(float(np.min(mm.sigma_t)) for mm in scene.media)
     if sigma <= 0.0:
-        return None, None, 0.0
+        return None, None, 0.0, False
     eye = np.asarray(scene.camera.origin, np.float64)
-    lights = light_positions(scene)
-    if np.all(eye >= lo) and np.all(eye <= hi):
+    # lights outside the media light them from their surface, no focus of their own
+    lights = [p for p in light_positions(scene) if np.all(p >= lo) and np.all(p <= hi)]
+    inside = bool(np.all(eye >= lo) and np.all(eye <= hi))
+    if inside:
         points, reach = np.array([eye] + lights), FOCUS_FREE_PATHS / sigma
     elif lights:
         points, reach = np.array(lights), FOCUS_LIGHT_FREE_PATHS / sigma
     else:
-        return None, None, 0.0
-    return points.min(axis=0) - reach, points.max(axis=0) + reach, sigma
+        return None, None, 0.0, False
+    return points.min(axis=0) - reach, points.max(axis=0) + reach, sigma, inside
 
 
-def graded_spacing(lo: np.ndarray, hi: np.ndarray, n: int, flo, fhi, sigma: float):
+def graded_spacing(lo: np.ndarray, hi: np.ndarray, n: int, flo, fhi, sigma: float, eye: bool = False):
     """Per axis (c, s, alpha, uc) of ``Spacing``: even (alpha 0) unless an even cell would span
     more than GRADE_CELL mean free paths (1 / sigma) and the media's extent is over GRADE_ABOVE
-    times the focus box's (clipped to them); then node u at c + s sinh(alpha (u - uc)), centred
+    times the focus box's (clipped to them), and, the ``eye`` inside the media, the cell over
+    GRADE_EYE_CELLS times the focus box; then node u at c + s sinh(alpha (u - uc)), centred
     on the focus box with s its half width, so the focus gets cells of about s alpha and the far
     media cells growing geometrically, and the nodes still span [lo, hi]."""
     zero = np.zeros(3)
@@ -762,7 +797,9 @@ def graded_spacing(lo: np.ndarray, hi: np.ndarray, n: int, flo, fhi, sigma: floa
     flo, fhi = np.maximum(flo, lo), np.minimum(fhi, hi)
     for a in range(3):
         width = fhi[a] - flo[a]
-        if width <= 0.0 or hi[a] - lo[a] <= GRADE_ABOVE * width or (hi[a] - lo[a]) / (n - 1) * sigma <= GRADE_CELL:
+        cell = (hi[a] - lo[a]) / (n - 1)
+        if (width <= 0.0 or hi[a] - lo[a] <= GRADE_ABOVE * width or cell * sigma <= GRADE_CELL
+                or (eye and cell <= GRADE_EYE_CELLS * width)):
             continue
         c[a], s[a] = 0.5 * (flo[a] + fhi[a]), 0.5 * width
         a0, a1 = np.arcsinh((lo[a] - c[a]) / s[a]), np.arcsinh((hi[a] - c[a]) / s[a])
