@@ -40,9 +40,12 @@ def haze(width=16, height=12):
 
 def test_white_furnace_converges_to_the_sky(device):
     """Single scattering leaves the sphere dark (the light scattered more than once is missing:
-    at optical radius 3 most of it); with the lattice the image is the sky's 1 to within the
-    lattice's discretisation, which halves (first order) as n and D double: the error at
-    (16, 32) is at most 0.6 of (8, 16)'s, and under 4%."""
+    at optical radius 3 most of it); with the lattice the image is the sky's 1. The sphere is
+    homogeneous, so the characteristics read its own sigma_t and sigma_s and interpolate only the
+    source per unit sigma_s, which is the sky's constant 1 / 4 pi in the furnace: linear
+    interpolation holds it exactly, and what is left is float rounding and the tail's 1%
+    stopping rule: 0.35% at (8, 16) and (16, 32) alike, where the sphere blurred over the cells
+    was 0.67% and 0.39% off (measured); under 1% is asked."""
     scene = furnace()
     single = wv.render(scene, technique="raymarch", device=device, multiple_scattering=0, sky_samples=64).image
     errors = []
@@ -52,8 +55,7 @@ def test_white_furnace_converges_to_the_sky(device):
         assert np.all(np.isfinite(img))
         errors.append(float(np.abs(img - 1.0).mean()))
     assert float(np.abs(single - 1.0).mean()) > 0.2
-    assert errors[1] <= 0.6 * errors[0]
-    assert errors[1] < 0.04
+    assert max(errors) < 0.01
 
 
 def test_the_lattice_carries_the_sky_and_lights_the_floor_beyond(device):
@@ -322,7 +324,8 @@ def test_the_light_scattered_first_keeps_its_energy_on_the_lattice(device, monke
     errors = []
     for n in (8, 15):
         lat, _, q1 = _first_source(scene, n, 16, device)
-        held = float((q1.mean(axis=2).sum(axis=0) * 4.0 * np.pi / 16 * _node_weights(lat, n)).sum())
+        assert lat.exact == 1  # homogeneous: the nodes hold the source per unit sigma_s (6 here)
+        held = 6.0 * float((q1.mean(axis=2).sum(axis=0) * 4.0 * np.pi / 16 * _node_weights(lat, n)).sum())
         errors.append(held / exact - 1.0)
     assert max(abs(e) for e in errors) < 0.03
 

@@ -131,6 +131,7 @@ class Lattice:
     hi: wp.vec3
     spacing: Spacing
     graded: int  # 0: evenly spaced on every axis
+    exact: int  # 1: every medium homogeneous; characteristics read its coefficients exactly, the sources per unit sigma_s
     directions: wp.array(dtype=wp.vec3)  # unit, the direction the radiance travels
 
 
@@ -540,7 +541,7 @@ def light_source(offset: int, m: Media, s: Surfaces, lights: wp.array(dtype=Emit
                     if wp.max(carried) > 0.0:
                         et = wp.cw_mul(carried, tr)
                         for i in range(phase_count):
-                            sig = sigma_s[i * n3 + q]
+                            sig = source_weight(lat, sigma_s, phase_count, n3, q, i)
                             if wp.max(sig) > 0.0:
                                 se = wp.cw_mul(sig, et)
                                 for d in range(D):
@@ -554,7 +555,7 @@ def light_source(offset: int, m: Media, s: Surfaces, lights: wp.array(dtype=Emit
             et = wp.cw_mul(e, light_transmittance(m, s, x, wi, dist, 0, rng, shadow_steps))
             if wp.max(et) > 0.0:
                 for i in range(phase_count):
-                    sig = sigma_s[i * n3 + q]
+                    sig = source_weight(lat, sigma_s, phase_count, n3, q, i)
                     if wp.max(sig) > 0.0:
                         se = wp.cw_mul(sig, et)
                         for d in range(D):
@@ -570,19 +571,38 @@ def cell_step(width: wp.vec3, w: wp.vec3) -> float:
 
 
 @wp.func
-def transport_step(lat: Lattice, sigma_t: wp.array(dtype=wp.vec3), source: wp.array(dtype=wp.vec3), base: int,
-                   with_source: int, xm: wp.vec3, dt: float, L: wp.vec3, tr: wp.vec3):
-    """One step of a characteristic, coefficients at its midpoint xm: (L, tr) after it."""
+def exact_coefficients(m: Media, x: wp.vec3):
+    """(sigma_t, sigma_s) of all the media at x, from the media themselves."""
+    st = wp.vec3(0.0)
+    ss = wp.vec3(0.0)
+    for i in range(m.count):
+        sig = medium_sigma_t(m, i, x)
+        st += sig
+        ss += wp.cw_mul(sig, m.albedo[i])
+    return st, ss
+
+
+@wp.func
+def transport_step(m: Media, lat: Lattice, sigma_t: wp.array(dtype=wp.vec3), source: wp.array(dtype=wp.vec3),
+                   base: int, with_source: int, xm: wp.vec3, dt: float, L: wp.vec3, tr: wp.vec3):
+    """One step of a characteristic, coefficients at its midpoint xm: (L, tr) after it. Where the
+    lattice is ``exact`` the media's own sigma_t and sigma_s at xm (a sphere's edge stays sharp,
+    not blurred over a cell) times the interpolated source per unit sigma_s."""
     u = lattice_coords(lat, xm)
-    sig = lattice_at_vec3(sigma_t, 0, 1, lat.n, u)
+    sig = wp.vec3(0.0)
+    scale = wp.vec3(1.0)
+    if lat.exact != 0:
+        sig, scale = exact_coefficients(m, xm)
+    else:
+        sig = lattice_at_vec3(sigma_t, 0, 1, lat.n, u)
     if with_source != 0:
-        src = lattice_at_vec3(source, base, 1, lat.n, u)
+        src = wp.cw_mul(scale, lattice_at_vec3(source, base, 1, lat.n, u))
         L += wp.cw_mul(wp.cw_mul(tr, src), step_integral_rgb(sig, dt))
     return L, wp.cw_mul(tr, transmittance_rgb(sig * dt))
 
 
 @wp.kernel
-def transport(offset: int, lat: Lattice, sigma_t: wp.array(dtype=wp.vec3), source: wp.array(dtype=wp.vec3),
+def transport(offset: int, m: Media, lat: Lattice, sigma_t: wp.array(dtype=wp.vec3), source: wp.array(dtype=wp.vec3),
               lengths: wp.array(dtype=float), starts: wp.array(dtype=wp.vec3), with_source: int,
               out: wp.array(dtype=wp.vec3)):
     """L(x, w_d) = int T Q ds back along w_d (one cell a step, exact per step; Q direction-major,
@@ -605,15 +625,38 @@ def transport(offset: int, lat: Lattice, sigma_t: wp.array(dtype=wp.vec3), sourc
         dt = t_end / float(steps)
         t = t_end
         for k in range(steps):
-            L, tr = transport_step(lat, sigma_t, source, d * n3, with_source, x + ((float(k) + 0.5) * dt) * back,
+            L, tr = transport_step(m, lat, sigma_t, source, d * n3, with_source, x + ((float(k) + 0.5) * dt) * back,
                                    dt, L, tr)
     while t < t_end:  # graded: steps of the local cell
         dt = wp.min(cell_step(cell_size(lat, x + t * back), back), t_end - t)
         if t_end - t - dt < 1.0e-3 * dt:
             dt = t_end - t
-        L, tr = transport_step(lat, sigma_t, source, d * n3, with_source, x + (t + 0.5 * dt) * back, dt, L, tr)
+        L, tr = transport_step(m, lat, sigma_t, source, d * n3, with_source, x + (t + 0.5 * dt) * back, dt, L, tr)
         t += dt
     out[q * D + d] = L + wp.cw_mul(tr, starts[tid])
+
+
+@wp.func
+def total_scattering(sigma_s: wp.array(dtype=wp.vec3), phase_count: int, n3: int, q: int) -> wp.vec3:
+    out = wp.vec3(0.0)
+    for i in range(phase_count):
+        out += sigma_s[i * n3 + q]
+    return out
+
+
+@wp.func
+def source_weight(lat: Lattice, sigma_s: wp.array(dtype=wp.vec3), phase_count: int, n3: int, q: int,
+                  i: int) -> wp.vec3:
+    """What medium i's phase function weighs in node q's source: its sigma_s; on an ``exact``
+    lattice (sources per unit sigma_s) its share of the node's sigma_s, or an equal share where
+    the node holds no medium (the source just outside a sphere of fog, read inside its edge)."""
+    sig = sigma_s[i * n3 + q]
+    if lat.exact == 0:
+        return sig
+    total = total_scattering(sigma_s, phase_count, n3, q)
+    if wp.max(total) <= 0.0:
+        return wp.vec3(1.0 / float(phase_count))
+    return wp.cw_div(sig, wp.max(total, wp.vec3(1.0e-30)))
 
 
 @wp.kernel
@@ -628,7 +671,7 @@ def scatter(offset: int, lat: Lattice, sigma_s: wp.array(dtype=wp.vec3), P: wp.a
     d = tid % D
     acc = wp.vec3(0.0)
     for i in range(phase_count):
-        sig = sigma_s[i * n3 + q]
+        sig = source_weight(lat, sigma_s, phase_count, n3, q, i)
         if wp.max(sig) > 0.0:
             row = (i * D + d) * D
             s = wp.vec3(0.0)
@@ -870,6 +913,10 @@ class MultipleScattering:
         lat.spacing = Spacing()
         lat.spacing.c, lat.spacing.s, lat.spacing.alpha, lat.spacing.uc = (wp.vec3(*v) for v in (c, s, alpha, uc))
         lat.graded = int(np.any(alpha > 0.0))
+        # exact coefficients where every medium is homogeneous (cheap to read, and a sphere's edge
+        # blurred over a cell dimmed a thick sphere lit from outside by 20%); not on graded lattices,
+        # whose far cells, wider than the fog's own features, measured better interpolated
+        lat.exact = int(lat.graded == 0 and all(mm.type == "homogeneous" for mm in self.t.scene.media))
         lat.directions = wp.array(fibonacci_directions(D), dtype=wp.vec3, device=self.t.device)
         return lat
 
@@ -907,7 +954,7 @@ class MultipleScattering:
         sky = any(c > 0.0 for c in scene.background)
         if sky or scene.surfaces:
             # L_0: the sky and the surfaces' reflected direct light; scattered once, it joins Q_1
-            dev.launch(transport, size, [lat, sigma_t, source, ends.length, ends.start, 0, L], device, work=march)
+            dev.launch(transport, size, [m, lat, sigma_t, source, ends.length, ends.start, 0, L], device, work=march)
             dev.launch(scatter, size, [lat, self.sigma_s, P, M, L, 1, source], device, work=M * D)
             if reflects:
                 dev.launch(reflect_at_ends, size, [surfaces, lat, ends, L, starts], device, work=D)
@@ -916,12 +963,12 @@ class MultipleScattering:
             # technique gathers the sky's single scattering (raymarch's sky_samples)
             if sky and scene.surfaces and self.t.gathers_sky:
                 dev.launch(surface_starts, size, [ends], device)
-                dev.launch(transport, size, [lat, sigma_t, source, ends.length, ends.start, 0, L], device, work=march)
+                dev.launch(transport, size, [m, lat, sigma_t, source, ends.length, ends.start, 0, L], device, work=march)
             if scene.surfaces or not self.t.gathers_sky:
                 dev.launch(add_order, size, [L, one, total], device)
         previous, ratio, total_energy = None, np.zeros(3), np.zeros(3)
         for k in range(1, MAX_ORDERS + 1):
-            dev.launch(transport, size, [lat, sigma_t, source, ends.length, starts, 1, L], device, work=march)
+            dev.launch(transport, size, [m, lat, sigma_t, source, ends.length, starts, 1, L], device, work=march)
             dev.launch(add_order, size, [L, one, total], device)
             energy = L.numpy().reshape(-1, 3).sum(axis=0, dtype=np.float64)
             total_energy = total_energy + energy
@@ -968,7 +1015,7 @@ class MultipleScattering:
             sl.sky = wp.vec3(0.0) if self.t.gathers_sky else wp.vec3(*self.t.scene.background)
         else:
             sl.lat = Lattice()
-            sl.lat.n, sl.lat.graded, sl.lat.spacing = 0, 0, Spacing()
+            sl.lat.n, sl.lat.graded, sl.lat.exact, sl.lat.spacing = 0, 0, 0, Spacing()
             sl.values = sl.field = sl.lat.directions = wp.zeros(1, dtype=wp.vec3, device=self.t.device)
         return sl
 
