@@ -441,7 +441,12 @@ def multiple_section(rows: list[dict], png: Path) -> list[str]:
         if p["technique"] == "reference":
             continue
         key = (p["family"], p["technique"])
-        kind = "on" if p.get("multiple_scattering") else ("off" if key + ("off",) not in by else "off4")
+        if p.get("multiple_scattering"):
+            if key + ("on",) in by:  # the technique's defaults come first; later rows are the ladder's
+                continue
+            kind = "on"
+        else:
+            kind = "off" if key + ("off",) not in by else "off4"
         by[key + (kind,)] = r
     for family, technique in dict.fromkeys((k[0], k[1]) for k in by):
         off, off4, on = (by.get((family, technique, k)) for k in ("off", "off4", "on"))
