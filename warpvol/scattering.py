@@ -11,13 +11,18 @@ each), the discrete-ordinates method (Chandrasekhar 1960; Fattal 2009 for graphi
 long characteristics:
 
 * order 1's source at node x toward w_d: Q_1 = sum_l sigma_s p(-w_l . w_d) E_l T_l, the
-  lights' direct light (shadow rays through the media and past the surfaces; a point light's
-  1/d^2 averaged over a ball of half a cell, finite at the light), plus the sky's light
-  scattered once (the background carried to the node along each w_d, through the media and
-  blocked by surfaces);
+  lights' direct light (shadow rays through the media and past the surfaces), plus the sky's
+  light scattered once (the background carried to the node along each w_d, through the media
+  and blocked by surfaces). A node within NEAR_LIGHT_CELLS of a point or spot light takes the
+  light's source averaged over its hat (``hat_light_direction``), so the interpolant keeps the
+  light scattered near the lamp; farther nodes, and graded lattices, 1/d^2 averaged over a ball
+  of half a cell (finite at the light);
 * transport: L_k(x, w_d) = int_0^t T(x, x - s w_d) Q_k(x - s w_d, w_d) ds, marched back along
-  w_d to the lattice's boundary or the first surface, one cell a step, with sigma_t and Q
-  interpolated trilinearly and each step integrated exactly for constant coefficients;
+  w_d to the lattice's boundary or the first surface, one cell a step, with Q interpolated
+  trilinearly and each step integrated exactly for constant coefficients; sigma_t is
+  interpolated too, except where every medium is homogeneous (and the nodes even): there the
+  step reads the media's own sigma_t and sigma_s and the nodes hold Q per unit sigma_s
+  (``Lattice.exact``), so a sphere's edge stays sharp;
 * scattering: Q_{k+1}(x, w_d) = sigma_s(x) sum_d' P[d, d'] L_k(x, w_d'), the phase function
   as a D x D matrix whose rows sum to 1 (energy kept exactly at albedo 1, the white furnace);
 * order 0 (L_0: the sky and the surfaces' reflected direct light carried to the node, not
@@ -25,8 +30,9 @@ long characteristics:
   (the fog lit by the walls, a wall lit by another), the sky's unless the technique gathers
   the sky's single scattering itself (``sky_samples`` > 0);
 * orders are summed until the ratio rho of successive orders' energies settles (to 1%, or
-  until the change moves the tail by under 1% of the energy summed); the rest of the series is the geometric tail L_k rho / (1 - rho), as Hillaire (EGSR 2020)
-  sums the orders of multiple scattering in an atmosphere.
+  until the change moves the tail by under 1% of the energy summed); the rest of the series
+  is the geometric tail L_k rho / (1 - rho), as Hillaire (EGSR 2020) sums the orders of
+  multiple scattering in an atmosphere.
 
 For the camera, every node holds R(x) = sum_d p(w_d . wo) L_{>=1}(x, w_d) / sum_d p(w_d . wo),
 wo toward the camera's eye: a march adds sigma_s(x) R(x) to its in-scattering at each step
@@ -36,17 +42,18 @@ the surface reflects, of the lights' direct light and of the sky in order 0 and 
 lattice's field L_{k-1} in order k (``reflect_at_ends``), so light goes from the media to a
 wall and back, and from wall to wall; a march's visible surface reflects the field too
 (``scattered_on_surface``). A surface outside the lattice (a floor beyond the fog) reflects
-the lights and the sky once, not the field. Everything converges to the all-orders answer as
+the lights and the sky (seen along its normal, ``shading.sky_along_normal``) once, not the
+field. Everything converges to the all-orders answer as
 the nodes and directions rise (error ~ 1/n, 1/D), up to the light leaking through surfaces
 thinner than a cell, whose two sides share nodes.
 
 The lattice stops just inside the walls that enclose the lights where the media's bounds pass
 them (``enclosed``): nodes behind a wall would blend the dark outside into the light inside.
-Where even cells would span more than a mean free path of media far wider than the camera's
-and the lights' surroundings (fog that fills the world), the nodes are graded: node u at
-c + s sinh(alpha (u - uc)) per axis, fine around the camera and lights and growing
-geometrically to the media's bounds (``graded_spacing``); the characteristics then step one
-local cell at a time.
+Where even cells would span more than half a mean free path of media far wider than what
+matters (``focus``: the eye and the lamps in fog that fills the world, or the lamps in thick
+fog seen from outside), the nodes are graded: node u at c + s sinh(alpha (u - uc)) per axis,
+fine around that region and growing geometrically to the media's bounds
+(``graded_spacing``); the characteristics then step one local cell at a time.
 
 The setting ``multiple_scattering`` is n (0: single scattering, the papers' own models);
 ``ms_directions`` is D.
