@@ -292,10 +292,36 @@ def dynamic_parts(scene) -> set[str]:
     return out
 
 
-class Pipeline:
-    """Runs a technique's stages frame after frame, re-running only what a change invalidates."""
+class _ReadLog(dict):
+    """The technique's settings while a stage runs under audit: every key read is noted."""
 
-    def __init__(self, technique: Technique):
+    def __init__(self, settings: dict):
+        super().__init__(settings)
+        self.read: set[str] = set()
+
+    def __getitem__(self, key):
+        self.read.add(key)
+        return super().__getitem__(key)
+
+    def get(self, key, default=None):
+        self.read.add(key)
+        return super().get(key, default)
+
+    def __contains__(self, key):
+        self.read.add(key)
+        return super().__contains__(key)
+
+
+class Pipeline:
+    """Runs a technique's stages frame after frame, re-running only what a change invalidates.
+
+    With ``audit`` on, each stage runs with the technique's settings wrapped so that every key
+    it reads is noted; ``undeclared`` then maps a stage to the settings it read but does not
+    declare (its cache key would miss a change to them: a stale image)."""
+
+    def __init__(self, technique: Technique, audit: bool = False):
+        self.audit = audit
+        self.undeclared: dict[str, set[str]] = {}
         self.technique = technique
         self.versions = dict.fromkeys(PARTS, 0)
         self._keys: dict[str, tuple] = {}  # stage -> cache key it last ran with
@@ -344,7 +370,17 @@ class Pipeline:
                 out[stage.name] = StageRun("cached", 0.0)
                 continue
             t0 = time.perf_counter()
-            changed = stage.run()
+            if self.audit:
+                log = self.technique.settings = _ReadLog(settings)
+                try:
+                    changed = stage.run()
+                finally:
+                    self.technique.settings = settings
+                extra = log.read - set(stage.settings)
+                if extra:
+                    self.undeclared.setdefault(stage.name, set()).update(extra)
+            else:
+                changed = stage.run()
             wp.synchronize_device(device)
             out[stage.name] = StageRun("ran", (time.perf_counter() - t0) * 1000.0)
             keys[stage.name] = key
