@@ -185,3 +185,23 @@ def test_a_camera_table_changes_only_its_keys(device):
     assert r.scene.camera.fov_y == 30.0 and r.scene.camera.origin == (1.0, 0.2, 4.0)
     moved = {**scene, "camera": {**scene["camera"], "origin": [1.0, 0.2, 4.0]}}
     np.testing.assert_array_equal(frame.image, wv.render(moved, technique="raymarch", device=device, **SMALL).image)
+
+
+AUDITED = {"raymarch": ("fog-box", "smoke-grid", "hazy-sun"), "light_shafts": ("fog-box", "hazy-sun"),
+           "particle_glow": ("dusty-lamp", "smoke-grid"), "rbf_propagation": ("rbf-single", "fog-box"),
+           "illumination_network": ("particle-cloud",), "depth_impostors": ("particle-cloud",),
+           "reference": ("fog-box",)}
+
+
+@pytest.mark.parametrize("technique", list(AUDITED))
+def test_every_stage_declares_the_settings_it_reads(technique):
+    """Run each technique's stages with its settings wrapped (``Pipeline.audit``): a setting a
+    stage reads but does not declare is one its cache key misses, so changing it would serve a
+    stale image. Small built-in scenes that between them call every stage."""
+    for name in AUDITED[technique]:
+        scene = wv.load_scene(name, ["camera.width=16", "camera.height=12"])
+        settings = {"spp": 2} if technique == "reference" else {}
+        r = wv.Renderer(scene, technique=technique, device="cpu", **settings)
+        r._pipeline.audit = True
+        r.render()
+        assert r._pipeline.undeclared == {}, f"{technique} on {name}"

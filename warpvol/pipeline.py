@@ -293,23 +293,24 @@ def dynamic_parts(scene) -> set[str]:
 
 
 class _ReadLog(dict):
-    """The technique's settings while a stage runs under audit: every key read is noted."""
+    """The technique's settings while a stage runs under audit: every one of them read is noted
+    (asking for a key the technique has no setting of reads nothing that could change)."""
 
     def __init__(self, settings: dict):
         super().__init__(settings)
         self.read: set[str] = set()
 
+    def _note(self, key) -> None:
+        if super().__contains__(key):
+            self.read.add(key)
+
     def __getitem__(self, key):
-        self.read.add(key)
+        self._note(key)
         return super().__getitem__(key)
 
     def get(self, key, default=None):
-        self.read.add(key)
+        self._note(key)
         return super().get(key, default)
-
-    def __contains__(self, key):
-        self.read.add(key)
-        return super().__contains__(key)
 
 
 class Pipeline:

@@ -580,10 +580,10 @@ class IlluminationNetwork(Technique):
                   settings=("light_samples", "light_pass", "light_slices", "light_terms", "light_texels",
                             "light_tolerance"), after=("network", "lights"),
                   needed=lights),
-            Stage("emission", self._emission, after=("network", "direct"), settings=("half", "phase_norm")),
+            Stage("emission", self._emission, after=("network", "direct"), settings=("half", "phase_norm", "warm")),
             Stage("iterate", self._iterate, reads=("background",), settings=("iterations", "tolerance", "warm"),
                   after=("network", "emission"), settled=self.converged),
-            Stage("splat", self._splat, reads=("camera", "background"), settings=("splat_steps",),
+            Stage("splat", self._splat, reads=("camera", "background"), settings=("splat_steps", "phase_norm"),
                   after=("iterate", "direct")),
         ]
 

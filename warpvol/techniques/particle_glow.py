@@ -313,7 +313,7 @@ class ParticleGlow(Technique):
             self.light_volume.stage(),
             Stage("march", self._march, reads=("camera", "background"),
                   settings=("steps", "shadow_steps", "glow", "k_c", "c1", "c2", "cell", "anchor", "multiple_scattering",
-                            "shadow_grid"),
+                            "shadow_grid", "specular", "shininess", "texture_res"),
                   after=("medium", "textures", "tables", "shadow_maps", "multiple_view", "light_volume")),
         ]
 

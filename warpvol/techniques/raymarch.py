@@ -299,9 +299,10 @@ class Raymarch(Technique):
         ]
 
     def _bake(self):
-        st = self._march_settings()
+        """The light volume: it reads shadow_grid and shadow_steps (not the march's own settings)."""
         lights = lights_array(self._baked_lights(), self.device)
-        self.baked = light_depth_volume(self.uploads.media.struct, lights, st.shadow_grid, st.shadow_steps, self.device)
+        self.baked = light_depth_volume(self.uploads.media.struct, lights, self.settings["shadow_grid"],
+                                        self.settings["shadow_steps"], self.device)
 
     def _march(self):
         scene, u = self.scene, self.uploads

@@ -549,10 +549,11 @@ class RBFPropagation(Technique):
     def stages(self):
         return self.uploads.stages() + [
             Stage("inject", self._inject, reads=("medium", "surfaces"), settings=("grid",)),  # the density stage
-            Stage("propagate", self._propagate, reads=("lights",), settings=("rule", "wavefront", "iterations"),
+            Stage("propagate", self._propagate, reads=("lights",), settings=("rule", "wavefront", "iterations", "grid"),
                   after=("inject", "lights"), needed=bool(self.scene.lights)),
             *self.multiple.stages(after=("surfaces", "lights")),
-            Stage("march", self._march, reads=("camera", "background", "medium"), settings=("steps",),
+            Stage("march", self._march, reads=("camera", "background", "medium"),
+                  settings=("steps", "multiple_scattering"),
                   after=("inject", "propagate", "surfaces", "lights", "multiple_view")),
         ]
 
