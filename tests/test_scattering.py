@@ -361,7 +361,8 @@ def test_a_camera_inside_fog_grades_only_what_even_cells_cannot_resolve():
     fog = lambda half, sigma: [{"type": "homogeneous", "shape": "box", "size": [2 * half] * 3, "sigma_t": sigma,
                                 "albedo": 0.9}]
     lamp = lambda p: [{"type": "point", "position": p, "intensity": 1.0}]
-    world = {"half": 50.0, "camera": cam([0, 0, 0], [0, 0, -1]), "lights": lamp([0.4, 0.2, -2.0]), "media": fog(50, 0.3)}
+    world = {"half": 50.0, "camera": cam([0, 0, 0], [0, 0, -1]), "lights": lamp([0.4, 0.2, -2.0]),
+             "media": fog(50, 0.3)}
     box = {"half": 3.0, "camera": cam([0, 0, 2], [0, 0, -1]), "lights": lamp([0.5, 0.5, -1.0]), "media": fog(3, 1.5)}
     thick = {"half": 1.0, "camera": cam([0, 0, 4], [0, 0, 0]), "lights": lamp([0.3, 0.7, 0.2]), "media": fog(1, 2.4)}
     outside = {**thick, "lights": lamp([2.0, 1.5, 0.0])}

@@ -138,7 +138,7 @@ class Lattice:
     hi: wp.vec3
     spacing: Spacing
     graded: int  # 0: evenly spaced on every axis
-    exact: int  # 1: every medium homogeneous; characteristics read its coefficients exactly, the sources per unit sigma_s
+    exact: int  # 1: all media homogeneous: steps read their coefficients, the nodes hold sources per unit sigma_s
     directions: wp.array(dtype=wp.vec3)  # unit, the direction the radiance travels
 
 
@@ -970,7 +970,8 @@ class MultipleScattering:
             # technique gathers the sky's single scattering (raymarch's sky_samples)
             if sky and scene.surfaces and self.t.gathers_sky:
                 dev.launch(surface_starts, size, [ends], device)
-                dev.launch(transport, size, [m, lat, sigma_t, source, ends.length, ends.start, 0, L], device, work=march)
+                dev.launch(transport, size, [m, lat, sigma_t, source, ends.length, ends.start, 0, L], device,
+                           work=march)
             if scene.surfaces or not self.t.gathers_sky:
                 dev.launch(add_order, size, [L, one, total], device)
         previous, ratio, total_energy = None, np.zeros(3), np.zeros(3)
