@@ -571,15 +571,13 @@ class IlluminationNetwork(Technique):
     # --- stages -------------------------------------------------------------------------
 
     def stages(self):
-        lights = bool(self.scene.lights)
         return self.uploads.stages() + [
             Stage("network", self._network, reads=("medium",),
                   settings=("directions", "direction_seed", "window", "column", "window_at", "half", "phase_norm",
                             "refresh")),
             Stage("direct", self._direct, reads=("lights",),
                   settings=("light_samples", "light_pass", "light_slices", "light_terms", "light_texels",
-                            "light_tolerance"), after=("network", "lights"),
-                  needed=lights),
+                            "light_tolerance"), after=("network", "lights")),
             Stage("emission", self._emission, after=("network", "direct"), settings=("half", "phase_norm", "warm")),
             Stage("iterate", self._iterate, reads=("background",), settings=("iterations", "tolerance", "warm"),
                   after=("network", "emission"), settled=self.converged),
@@ -664,26 +662,25 @@ class IlluminationNetwork(Technique):
 
     def _direct(self):
         """Each particle's light through the shared light pass (media/lightpass.py): a map per
-        light, O(N x footprint), read at ``light_samples`` points of each sphere."""
+        light, O(N x footprint), read at ``light_samples`` points of each sphere. Without lights
+        (or particles) the direct light is one zero, which the emission reads as none."""
         s = self.settings
         n, L = self._n, len(self.scene.lights)
         self.direct = wp.zeros(max(n * L, 1), dtype=wp.vec3, device=self.device)
         self.travel = wp.zeros(max(n * L, 1), dtype=wp.vec3, device=self.device)
+        if not (n and L):
+            return
         args = (REPRESENTATIONS[s["light_pass"]], s["light_slices"], s["light_terms"], s["light_texels"],
                 s["light_tolerance"])
         if self.light_pass is None or self._light_args != args:  # kept, so a moved light starts where it ended
             self.light_pass = LightPass(self.device, args[0], slices=args[1], terms=args[2], texels=args[3],
                                         tolerance=args[4], check_particles=64)
             self._light_args = args
-        if n and L:
-            self.light_pass.build(self._particles, self.uploads.lights, s["light_samples"])
-            self.light_pass.direct(self._particles, self.uploads.lights, s["light_samples"], self.direct, self.travel)
+        self.light_pass.build(self._particles, self.uploads.lights, s["light_samples"])
+        self.light_pass.direct(self._particles, self.uploads.lights, s["light_samples"], self.direct, self.travel)
 
     def _emission(self):
         n, D, L = self._n, self.D, len(self.scene.lights)
-        if not L:
-            self.direct = wp.zeros(1, dtype=wp.vec3, device=self.device)
-            self.travel = wp.zeros(1, dtype=wp.vec3, device=self.device)
         # one scale for E, I and the sky: the largest source at most 1 in float16
         big = max(self._emission_bound(), float(np.max(self.scene.background)), 0.0)
         scale = float(2.0 ** np.ceil(np.log2(big))) if self.settings["half"] and big > 0 else 1.0
