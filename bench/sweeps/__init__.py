@@ -87,6 +87,11 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
     Sweep("rbf-scaling", "rbf_propagation: propagation time against cells x sweeps and march time against pixels x "
           "steps, with the fitted exponents",
           "rbf_propagation", "scaling", rbf_propagation.scaling_grid, rbf_propagation.scaling),
+    Sweep("rbf-shadows", "rbf_propagation's propagated shadows (Giroud & Biri 2011): a dense puff between a point light "
+          "and a layer of puffs over a floor, the error in its shadow and over the image against raymarched shadows, "
+          "and the per-cell optical-depth error, as the grid grows (scenes/rbf-shadows.toml, 96x72)",
+          "rbf_propagation", "table", rbf_propagation.shadows_grid, rbf_propagation.shadows,
+          note=rbf_propagation.SHADOWS_NOTE),
     Sweep("rbf-accuracy", "rbf_propagation: relative RMSE against the single-scattering reference vs ms per frame, "
           "over grid size and march steps, rbf-cornell 80x60",
           "rbf_propagation", "accuracy", rbf_propagation.rbf_accuracy_grid, rbf_propagation.rbf_accuracy),
