@@ -463,6 +463,10 @@ def multiple_section(rows: list[dict], png: Path) -> list[str]:
         if not ladder or not refs:
             continue
         best = min(refs, key=lambda r: r["rel_rmse_corrected"])  # its noise ~ spp^-1/2: time to E ~ (e / E)^2
+
+        def ref_time(e: float, best=best) -> float:
+            return best["median_ms"] * (best["rel_rmse_corrected"] / max(e, 1e-6)) ** 2
+
         lines += ["", f"**{family}**: raymarch's lattice doubled, against the reference's time to the same error "
                   f"(from its {best['params']['spp']} spp row: {best['rel_rmse_corrected']:.4f} in "
                   f"{best['median_ms']:.0f} ms, its error falling as spp^-1/2).", "",
@@ -471,7 +475,7 @@ def multiple_section(rows: list[dict], png: Path) -> list[str]:
         prev = None
         for r in ladder:
             e = r["rel_rmse_corrected"]
-            t_ref = best["median_ms"] * (best["rel_rmse_corrected"] / max(e, 1e-6)) ** 2
+            t_ref = ref_time(e)
             order = f"{math.log2(prev / e):.2f}" if prev and e > 0 else "–"
             sc = r.get("scattering", {})
             tail = ", ".join(f"{x:.3f}" for x in sc.get("ms_tail_ratio", [])[:1])
@@ -489,7 +493,7 @@ def multiple_section(rows: list[dict], png: Path) -> list[str]:
                       "| the reference's time to it | ratio |", "|---|---|---|---|---|"]
             for r in rich:
                 e = r["rel_rmse_corrected"]
-                t_ref = best["median_ms"] * (best["rel_rmse_corrected"] / max(e, 1e-6)) ** 2
+                t_ref = ref_time(e)
                 p = r["params"]
                 lines.append(f"| {p['multiple_scattering']}, {p['ms_directions']}, {p['steps']} | {r['median_ms']:.0f} "
                              f"| {e:.4f} | {t_ref:.0f} ms | {r['median_ms'] / t_ref:.3f} |")

@@ -311,17 +311,14 @@ def cmd_demo(args) -> int:
     error = float(np.sqrt(max(wv.relative_rmse(fast.image, ref.image) ** 2 - ref.error_estimate**2, 0.0)))
     lum = ref.image @ np.array([0.2126, 0.7152, 0.0722])
     exposure = float(-np.log2(max(np.percentile(lum, 99.5), 1e-30)))  # the reference's 99.5th percentile to white
-    gap = np.zeros((ref.image.shape[0], 4, 3), np.float32)
     # each half captioned under it (technique, time, error), the ink white at this exposure
     w = fast.image.shape[1]
     scale = max(1, w // 160)
-    captions = [text_mask([fast.technique, f"{fast_s:.2f} s  err {error:.2f}"], w, scale),
-                text_mask(["reference", f"{ref_s:.1f} s  noise {ref.error_estimate:.2f}"], w, scale)]
-    white = np.float32(2.0 ** -exposure)
-    caption = np.concatenate([captions[0], np.zeros((captions[0].shape[0], 4), np.float32), captions[1]], axis=1)
-    image = np.concatenate([np.concatenate([fast.image, gap, ref.image], axis=1),
-                            np.repeat(caption[:, :, None] * white, 3, axis=2)], axis=0)
-    wv.save_image(args.out, image, exposure=exposure)
+    halves = [np.concatenate([img, np.repeat(text_mask(lines, w, scale)[:, :, None], 3, axis=2) * 2.0**-exposure])
+              for img, lines in ((fast.image, [fast.technique, f"{fast_s:.2f} s  err {error:.2f}"]),
+                                 (ref.image, ["reference", f"{ref_s:.1f} s  noise {ref.error_estimate:.2f}"]))]
+    gap = np.zeros((halves[0].shape[0], 4, 3), np.float32)
+    wv.save_image(args.out, np.concatenate([halves[0], gap, halves[1]], axis=1), exposure=exposure)
     print(f"{scene.name}: {scene.camera.width}x{scene.camera.height} on {fast.device} (the first run compiles each "
           "technique's kernels)")
     print(f"  left:  {fast.technique:<10} {fast_s:6.2f} s  error {error:.3g} against the reference (its defaults"

@@ -69,7 +69,7 @@ from .geometry.intersect import ray_box
 from .geometry.mesh import Surfaces, surface_hit
 from .physics.brdf import Material
 from .media.grid import lattice_at_vec3, lattice_cell, trilinear_weights
-from .media.volume import Media, medium_sigma_t
+from .media.volume import Media, coefficients_at, medium_sigma_t
 from .physics.constants import INF, PI
 from .physics.lights import DIRECTIONAL, Emitter, ball_mean_inverse_square, light_incident
 from .physics.phase import phase_eval
@@ -206,14 +206,23 @@ def lattice_sample(values: wp.array(dtype=wp.vec3), base: int, stride: int, lat:
 
 
 @wp.func
-def node_position(lat: Lattice, q: int) -> wp.vec3:
-    n = lat.n
+def lattice_position(lat: Lattice, u: wp.vec3) -> wp.vec3:
+    """The point at lattice coordinates u (``lattice_coords``' inverse)."""
     sp = lat.spacing
-    return wp.vec3(axis_position(lat.lo[0], lat.hi[0], n, sp.c[0], sp.s[0], sp.alpha[0], sp.uc[0], float(q % n)),
-                   axis_position(lat.lo[1], lat.hi[1], n, sp.c[1], sp.s[1], sp.alpha[1], sp.uc[1],
-                                 float((q / n) % n)),
-                   axis_position(lat.lo[2], lat.hi[2], n, sp.c[2], sp.s[2], sp.alpha[2], sp.uc[2],
-                                 float(q / (n * n))))
+    return wp.vec3(axis_position(lat.lo[0], lat.hi[0], lat.n, sp.c[0], sp.s[0], sp.alpha[0], sp.uc[0], u[0]),
+                   axis_position(lat.lo[1], lat.hi[1], lat.n, sp.c[1], sp.s[1], sp.alpha[1], sp.uc[1], u[1]),
+                   axis_position(lat.lo[2], lat.hi[2], lat.n, sp.c[2], sp.s[2], sp.alpha[2], sp.uc[2], u[2]))
+
+
+@wp.func
+def node_index(n: int, q: int) -> wp.vec3:
+    """Node q's lattice coordinates (i, j, k)."""
+    return wp.vec3(float(q % n), float((q / n) % n), float(q / (n * n)))
+
+
+@wp.func
+def node_position(lat: Lattice, q: int) -> wp.vec3:
+    return lattice_position(lat, node_index(lat.n, q))
 
 
 @wp.func
@@ -408,12 +417,6 @@ def reflect_at_ends(offset: int, s: Surfaces, lat: Lattice, ends: Ends, L: wp.ar
 
 
 @wp.func
-def node_index(n: int, q: int) -> wp.vec3:
-    """Node q's lattice coordinates (i, j, k)."""
-    return wp.vec3(float(q % n), float((q / n) % n), float(q / (n * n)))
-
-
-@wp.func
 def hat_weight(lat: Lattice, node: wp.vec3, x: wp.vec3) -> float:
     """The trilinear interpolant's weight of the node at lattice coordinates ``node`` at x: its
     hat, 1 at the node falling to 0 a cell away on each axis (0 outside the lattice)."""
@@ -431,13 +434,9 @@ def hat_weight(lat: Lattice, node: wp.vec3, x: wp.vec3) -> float:
 def support_corner(lat: Lattice, node: wp.vec3, side: float) -> wp.vec3:
     """A corner of a node's hat (the neighbouring nodes' positions, or its own on the lattice's
     boundary): side -1 the low corner, +1 the high."""
-    sp = lat.spacing
     top = float(lat.n - 1)
-    u = wp.vec3(wp.clamp(node[0] + side, 0.0, top), wp.clamp(node[1] + side, 0.0, top),
-                wp.clamp(node[2] + side, 0.0, top))
-    return wp.vec3(axis_position(lat.lo[0], lat.hi[0], lat.n, sp.c[0], sp.s[0], sp.alpha[0], sp.uc[0], u[0]),
-                   axis_position(lat.lo[1], lat.hi[1], lat.n, sp.c[1], sp.s[1], sp.alpha[1], sp.uc[1], u[1]),
-                   axis_position(lat.lo[2], lat.hi[2], lat.n, sp.c[2], sp.s[2], sp.alpha[2], sp.uc[2], u[2]))
+    return lattice_position(lat, wp.vec3(wp.clamp(node[0] + side, 0.0, top), wp.clamp(node[1] + side, 0.0, top),
+                                         wp.clamp(node[2] + side, 0.0, top)))
 
 
 @wp.func
@@ -475,18 +474,15 @@ def near_light(lat: Lattice, node: wp.vec3, light: Emitter) -> bool:
 
 
 @wp.func
-def hat_light_direction(lat: Lattice, node: wp.vec3, light: Emitter, x: wp.vec3, sig: wp.vec3, k: int):
-    """Direction k of NEAR_DIRECTIONS from the light over the node's hat (a Fibonacci set on the cap
-    that holds the hat's bounding sphere) and the light it carries into the hat, per unit solid
-    angle and hat volume: int hat(p + r w) I(w) e^(-sigma (r - d)) dr (omega / K) / int hat dV,
-    sigma the extinction at the node and d its distance to the light (the node's own shadow ray
-    takes the rest), midpoints along the chord."""
+def hat_cap(lat: Lattice, node: wp.vec3, light: Emitter, x: wp.vec3):
+    """What every direction of ``hat_light_direction`` shares for one node (at x) and light: the
+    hat's corners, the cosine of the cap of directions from the light that holds the hat's
+    bounding sphere (-1: the light is inside it, the whole sphere), the cap's axis and the node's
+    distance to the light."""
     lo = support_corner(lat, node, -1.0)
     hi = support_corner(lat, node, 1.0)
-    half = wp.max(x - lo, hi - x)
-    radius = wp.length(half)
-    p = light.position
-    to = x - p
+    radius = wp.length(wp.max(x - lo, hi - x))
+    to = x - light.position
     dist = wp.length(to)
     axis = wp.vec3(0.0, 1.0, 0.0)
     if dist > 0.0:
@@ -494,12 +490,23 @@ def hat_light_direction(lat: Lattice, node: wp.vec3, light: Emitter, x: wp.vec3,
     cos_max = float(-1.0)
     if dist > radius:
         cos_max = wp.sqrt(1.0 - (radius / dist) * (radius / dist))
+    return lo, hi, cos_max, axis, dist
+
+
+@wp.func
+def hat_light_direction(lat: Lattice, node: wp.vec3, light: Emitter, lo: wp.vec3, hi: wp.vec3, cos_max: float,
+                        axis: wp.vec3, dist: float, volume: float, sig: wp.vec3, k: int):
+    """Direction k of NEAR_DIRECTIONS from the light over the node's hat (a Fibonacci set on the cap
+    of ``hat_cap``) and the light it carries into the hat, per unit solid angle and hat volume:
+    int hat(p + r w) I(w) e^(-sigma (r - d)) dr (omega / K) / int hat dV, sigma the extinction at
+    the node and d its distance to the light (the node's own shadow ray takes the rest),
+    midpoints along the chord."""
     z = 1.0 - (float(k) + 0.5) / float(NEAR_DIRECTIONS) * (1.0 - cos_max)
     r = wp.sqrt(wp.max(1.0 - z * z, 0.0))
     phi = GOLDEN_ANGLE * float(k)
     t, b = orthonormal_basis(axis)
     w = z * axis + (r * wp.cos(phi)) * t + (r * wp.sin(phi)) * b
-    volume = hat_volume(lat, node)
+    p = light.position
     t0, t1 = ray_box(p, w, lo, hi)
     t0 = wp.max(t0, 0.0)
     acc = wp.vec3(0.0)
@@ -516,6 +523,44 @@ def hat_light_direction(lat: Lattice, node: wp.vec3, light: Emitter, x: wp.vec3,
                 acc += (hw * dd * dd) * wp.cw_mul(e, fall)
         acc = acc * (dr * 2.0 * PI * (1.0 - cos_max) / (float(NEAR_DIRECTIONS) * volume))
     return w, acc
+
+
+@wp.func
+def total_scattering(sigma_s: wp.array(dtype=wp.vec3), phase_count: int, n3: int, q: int) -> wp.vec3:
+    out = wp.vec3(0.0)
+    for i in range(phase_count):
+        out += sigma_s[i * n3 + q]
+    return out
+
+
+@wp.func
+def source_weight(lat: Lattice, sigma_s: wp.array(dtype=wp.vec3), phase_count: int, n3: int, q: int,
+                  i: int) -> wp.vec3:
+    """What medium i's phase function weighs in node q's source: its sigma_s; on an ``exact``
+    lattice (sources per unit sigma_s) its share of the node's sigma_s, or an equal share where
+    the node holds no medium (the source just outside a sphere of fog, read inside its edge)."""
+    sig = sigma_s[i * n3 + q]
+    if lat.exact == 0:
+        return sig
+    total = total_scattering(sigma_s, phase_count, n3, q)
+    if wp.max(total) <= 0.0:
+        return wp.vec3(1.0 / float(phase_count))
+    return wp.cw_div(sig, wp.max(total, wp.vec3(1.0e-30)))
+
+
+@wp.func
+def add_scattered(m: Media, lat: Lattice, sigma_s: wp.array(dtype=wp.vec3), phase_count: int, n3: int, q: int,
+                  w: wp.vec3, et: wp.vec3, q_out: wp.array(dtype=wp.vec3)):
+    """Onto node q's source toward every direction: light et travelling along w, scattered by each
+    medium's phase function, weighted as ``source_weight`` says."""
+    D = lat.directions.shape[0]
+    for i in range(phase_count):
+        sig = source_weight(lat, sigma_s, phase_count, n3, q, i)
+        if wp.max(sig) > 0.0:
+            se = wp.cw_mul(sig, et)
+            for d in range(D):
+                ph = phase_eval(m.phase[i], m.phase_table, wp.dot(w, lat.directions[d]))
+                q_out[d * n3 + q] = q_out[d * n3 + q] + ph * se
 
 
 @wp.kernel
@@ -543,17 +588,13 @@ def light_source(offset: int, m: Media, s: Surfaces, lights: wp.array(dtype=Emit
         if lat.graded == 0 and near_light(lat, node, lights[l]):
             tr = light_transmittance(m, s, x, wi, dist, 0, rng, shadow_steps)
             if wp.max(tr) > 0.0:
+                lo, hi, cos_max, axis, d_light = hat_cap(lat, node, lights[l], x)
+                volume = hat_volume(lat, node)
                 for k in range(NEAR_DIRECTIONS):
-                    w, carried = hat_light_direction(lat, node, lights[l], x, sigma_t[q], k)
+                    w, carried = hat_light_direction(lat, node, lights[l], lo, hi, cos_max, axis, d_light, volume,
+                                                     sigma_t[q], k)
                     if wp.max(carried) > 0.0:
-                        et = wp.cw_mul(carried, tr)
-                        for i in range(phase_count):
-                            sig = source_weight(lat, sigma_s, phase_count, n3, q, i)
-                            if wp.max(sig) > 0.0:
-                                se = wp.cw_mul(sig, et)
-                                for d in range(D):
-                                    ph = phase_eval(m.phase[i], m.phase_table, wp.dot(w, lat.directions[d]))
-                                    q_out[d * n3 + q] = q_out[d * n3 + q] + ph * se
+                        add_scattered(m, lat, sigma_s, phase_count, n3, q, w, wp.cw_mul(carried, tr), q_out)
             continue
         if lights[l].kind != DIRECTIONAL:
             cell = 0.5 * wp.length(cell_size(lat, x))  # the half cell 1/d^2 is averaged over: finite at the light
@@ -561,13 +602,7 @@ def light_source(offset: int, m: Media, s: Surfaces, lights: wp.array(dtype=Emit
         if wp.max(e) > 0.0:
             et = wp.cw_mul(e, light_transmittance(m, s, x, wi, dist, 0, rng, shadow_steps))
             if wp.max(et) > 0.0:
-                for i in range(phase_count):
-                    sig = source_weight(lat, sigma_s, phase_count, n3, q, i)
-                    if wp.max(sig) > 0.0:
-                        se = wp.cw_mul(sig, et)
-                        for d in range(D):
-                            ph = phase_eval(m.phase[i], m.phase_table, -wp.dot(wi, lat.directions[d]))
-                            q_out[d * n3 + q] = q_out[d * n3 + q] + ph * se
+                add_scattered(m, lat, sigma_s, phase_count, n3, q, -wi, et, q_out)
 
 
 @wp.func
@@ -575,18 +610,6 @@ def cell_step(width: wp.vec3, w: wp.vec3) -> float:
     """The length along w that crosses one cell of these widths on no axis more than once."""
     return wp.min(wp.min(width[0] / wp.max(wp.abs(w[0]), 1.0e-6), width[1] / wp.max(wp.abs(w[1]), 1.0e-6)),
                   width[2] / wp.max(wp.abs(w[2]), 1.0e-6))
-
-
-@wp.func
-def exact_coefficients(m: Media, x: wp.vec3):
-    """(sigma_t, sigma_s) of all the media at x, from the media themselves."""
-    st = wp.vec3(0.0)
-    ss = wp.vec3(0.0)
-    for i in range(m.count):
-        sig = medium_sigma_t(m, i, x)
-        st += sig
-        ss += wp.cw_mul(sig, m.albedo[i])
-    return st, ss
 
 
 @wp.func
@@ -599,7 +622,7 @@ def transport_step(m: Media, lat: Lattice, sigma_t: wp.array(dtype=wp.vec3), sou
     sig = wp.vec3(0.0)
     scale = wp.vec3(1.0)
     if lat.exact != 0:
-        sig, scale = exact_coefficients(m, xm)
+        sig, scale = coefficients_at(m, xm)
     else:
         sig = lattice_at_vec3(sigma_t, 0, 1, lat.n, u)
     if with_source != 0:
@@ -641,29 +664,6 @@ def transport(offset: int, m: Media, lat: Lattice, sigma_t: wp.array(dtype=wp.ve
         L, tr = transport_step(m, lat, sigma_t, source, d * n3, with_source, x + (t + 0.5 * dt) * back, dt, L, tr)
         t += dt
     out[q * D + d] = L + wp.cw_mul(tr, starts[tid])
-
-
-@wp.func
-def total_scattering(sigma_s: wp.array(dtype=wp.vec3), phase_count: int, n3: int, q: int) -> wp.vec3:
-    out = wp.vec3(0.0)
-    for i in range(phase_count):
-        out += sigma_s[i * n3 + q]
-    return out
-
-
-@wp.func
-def source_weight(lat: Lattice, sigma_s: wp.array(dtype=wp.vec3), phase_count: int, n3: int, q: int,
-                  i: int) -> wp.vec3:
-    """What medium i's phase function weighs in node q's source: its sigma_s; on an ``exact``
-    lattice (sources per unit sigma_s) its share of the node's sigma_s, or an equal share where
-    the node holds no medium (the source just outside a sphere of fog, read inside its edge)."""
-    sig = sigma_s[i * n3 + q]
-    if lat.exact == 0:
-        return sig
-    total = total_scattering(sigma_s, phase_count, n3, q)
-    if wp.max(total) <= 0.0:
-        return wp.vec3(1.0 / float(phase_count))
-    return wp.cw_div(sig, wp.max(total, wp.vec3(1.0e-30)))
 
 
 @wp.kernel
@@ -891,6 +891,12 @@ class MultipleScattering:
     def n(self) -> int:
         return self.t.settings["multiple_scattering"] if self.t.scene.media else 0
 
+    @property
+    def shadow_steps(self) -> int:
+        """Midpoints of the solve's shadow rays through grid media (and of the sky's along a
+        surface's normal): two a node."""
+        return max(2 * self.n, 16)
+
     def stages(self, after: tuple[str, ...]) -> list[Stage]:
         needed = self.n > 0
         sky = ("sky_samples",) if "sky_samples" in self.t.settings else ()
@@ -940,7 +946,7 @@ class MultipleScattering:
         P = wp.empty(M * D * D, dtype=float, device=device)
         dev.launch(phase_matrix, M * D, [m, lat.directions, P], device, work=2.0 * D)
         lights, surfaces = self._lights(), self._surfaces()
-        shadow_steps = max(2 * lat.n, 16)
+        shadow_steps = self.shadow_steps
         ends = Ends()
         ends.length = wp.empty(size, dtype=float, device=device)
         ends.point = wp.zeros(size, dtype=wp.vec3, device=device)
@@ -1018,7 +1024,7 @@ class MultipleScattering:
         sl = ScatteredLight()
         if self.n > 0 and self.view is not None:
             sl.lat, sl.values, sl.field = self.lattice, self.view, self.L
-            sl.m, sl.steps = self._m, max(2 * self.lattice.n, 16)
+            sl.m, sl.steps = self._m, self.shadow_steps
             # the sky on surfaces beyond the field, unless the technique gathers the sky itself
             sl.sky = wp.vec3(0.0) if self.t.gathers_sky else wp.vec3(*self.t.scene.background)
         else:

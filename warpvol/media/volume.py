@@ -145,6 +145,19 @@ def scattering_at(m: Media, x: wp.vec3) -> wp.vec3:
 
 
 @wp.func
+def coefficients_at(m: Media, x: wp.vec3):
+    """(sigma_t, sigma_s) of all the media at x: ``sigma_t_at`` and ``scattering_at`` with each
+    medium looked up once."""
+    st = wp.vec3(0.0)
+    ss = wp.vec3(0.0)
+    for i in range(m.count):
+        sig = medium_sigma_t(m, i, x)
+        st += sig
+        ss += wp.cw_mul(sig, m.albedo[i])
+    return st, ss
+
+
+@wp.func
 def media_span(m: Media, o: wp.vec3, d: wp.vec3):
     """(t_near, t_far) of the part of the ray o + t d (unit d) that can meet a medium: the
     hull of each medium's box met with its ball; t_near > t_far when the ray misses them all.

@@ -278,8 +278,7 @@ class Raymarch(Technique):
 
     def _baked_lights(self) -> list:
         """What the light volume bakes, in this order: the scene's lights, and the sky's directions
-        where the march gathers them at every step (not where the lattice carries the sky: a
-        surface beyond its field is marched to)."""
+        where the march gathers them (the lattice off; on, it carries the sky)."""
         return light_structs(self.scene) + self._sky()
 
     def _sky(self) -> list:
