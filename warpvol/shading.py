@@ -152,7 +152,8 @@ def light_depth_volume(m: Media, lights: wp.array, n: int, steps: int, device) -
     """``bake_light_depth`` over the media's heterogeneous box for every light of ``lights``."""
     out = wp.empty(max(1, lights.shape[0] * n**3), dtype=wp.vec3, device=device)
     if lights.shape[0]:
-        dev.launch(bake_light_depth, lights.shape[0] * n**3, [m, lights, n, m.het_min, m.het_max, steps, out], device)
+        dev.launch(bake_light_depth, lights.shape[0] * n**3, [m, lights, n, m.het_min, m.het_max, steps, out], device,
+                   work=steps)
     return out
 
 

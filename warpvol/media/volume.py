@@ -126,6 +126,15 @@ def in_scatter_at(m: Media, x: wp.vec3, cos_theta: float) -> wp.vec3:
 
 
 @wp.func
+def in_scatter_from(m: Media, x: wp.vec3, sigma_s: wp.vec3, cos_theta: float) -> wp.vec3:
+    """``in_scatter_at`` where the caller holds sigma_s at x (``coefficients_at``): with one
+    medium it is sigma_s p(cos_theta), no lookup; with several each medium is looked up again."""
+    if m.count == 1:
+        return phase_eval(m.phase[0], m.phase_table, cos_theta) * sigma_s
+    return in_scatter_at(m, x, cos_theta)
+
+
+@wp.func
 def exact_media(m: Media) -> bool:
     """Whether every medium has a closed-form optical depth (no grid is tracked): then
     ``transmittance_estimate`` is exact and a free flight's pdf sigma_t T is known."""

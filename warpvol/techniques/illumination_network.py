@@ -777,7 +777,7 @@ class IlluminationNetwork(Technique):
         bg = wp.vec3(*self.scene.background)
         if self.settings["splat_steps"]:
             dev.launch(composite_march, W * H, [pc, P, self.radiance, tl, self.settings["splat_steps"], bg, self.image],
-                       device)
+                       device, work=self.settings["splat_steps"])
         else:
             dev.launch(composite, W * H, [pc, P, self.radiance, tl, bg, self.image], device)
 

@@ -285,9 +285,8 @@ def march_shafts(offset: int, cam: RasterView, m: Media, sl: ShadowedLights, seg
     ta = seg[0]
     tb = seg[1]
     b = seg[2]
-    if st.has_depth == 0:
-        surface_out[tid] = wp.cw_mul(background, transmittance_rgb(marched_optical_depth(m, o, d, 0.0, b, st.steps)))
     acc = wp.vec3(0.0)
+    background_done = bool(False)
     own = wp.vec3(0.0)
     if ta < tb and st.scattering == 1:
         for l in range(sl.lights.shape[0]):
@@ -352,6 +351,12 @@ def march_shafts(offset: int, cam: RasterView, m: Media, sl: ShadowedLights, seg
                     if ms.lat.n > 0:
                         acc += wp.cw_mul(transmittance_rgb(tau_v), scattered_light(ms, scattering_at(m, x), x)) * w
                 tau += sig * w
+            if st.has_depth == 0:  # the background through the optical depth this march summed
+                tau += homogeneous_optical_depth(m, o, d, ta, tb)
+                surface_out[tid] = wp.cw_mul(background, transmittance_rgb(tau))
+                background_done = True
+    if st.has_depth == 0 and not background_done:
+        surface_out[tid] = wp.cw_mul(background, transmittance_rgb(marched_optical_depth(m, o, d, 0.0, b, st.steps)))
     partial_out[tid] = acc
     own_out[tid] = own
 
@@ -602,7 +607,7 @@ class LightShafts(Technique):
                                                  self._shadowed_lights(), vis, self.settings["shadow_steps"],
                                                  self.settings["steps"], wp.vec3(*scene.background),
                                                  self.multiple.struct(), self.radiance],
-                   self.device)
+                   self.device, work=self._pixel_work(1.0))
 
     def _march(self):
         scene, u, cfg = self.scene, self.uploads, self.settings
@@ -625,10 +630,17 @@ class LightShafts(Technique):
         self.own = self._scratch("own", npix, wp.vec3)
         dev.launch(march_shafts, npix, [camera_view(pinhole(cam)), u.media.struct, self._shadowed_lights(), self.segs,
                                         wp.vec3(*scene.background), st, self.multiple.struct(), self.surface,
-                                        self.partial, self.own], self.device)
+                                        self.partial, self.own], self.device,
+                   work=self._pixel_work(st.steps / st.block**2))
         if st.block == 1 or not cfg["scattering"] or not scene.media:
             self.image = wp.empty(npix, dtype=wp.vec3, device=self.device)  # the frame's own: not reused
             dev.launch(add_images, npix, [self.surface, self.partial, self.own, self.image], self.device)
+
+    def _pixel_work(self, per_light: float) -> float:
+        """A pixel's work in units of a simple pixel (``device.launch``): ``per_light`` light samples
+        for each light, and in heterogeneous media a density sample at every step of the view ray."""
+        hetero = any(m.type != "homogeneous" for m in self.scene.media)
+        return per_light * max(1, len(self.scene.lights)) + (self.settings["steps"] if hetero else 0)
 
     def _block_rows(self):
         cam = self.scene.camera

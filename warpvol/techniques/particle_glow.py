@@ -71,7 +71,7 @@ from ..geometry.intersect import ray_box
 from ..geometry.mesh import Surfaces
 from ..geometry.raster import RasterView, pixel_ray
 from ..geometry.shadowmap import ShadowedLights, shadow_visibility
-from ..media.volume import Media, scattering_at, sigma_t_at
+from ..media.volume import Media, coefficients_at
 from ..physics.airlight import g_table, surface_radiance
 from ..physics.constants import PI
 from ..physics.lights import DIRECTIONAL, SPOT, ball_mean_inverse_square, spot_falloff
@@ -219,13 +219,13 @@ def march_glow(offset: int, cam: RasterView, m: Media, s: Surfaces, sl: Shadowed
         dt = (tb - ta) / float(gs.steps)
         for k in range(gs.steps):
             x = o + (ta + (float(k) + 0.5) * dt) * d
-            sig = sigma_t_at(m, x, False)
+            sig, sig_s = coefficients_at(m, x)  # each medium looked up once a step
             if sig[0] > 0.0 or sig[1] > 0.0 or sig[2] > 0.0:
                 src = wp.vec3(0.0)
                 for l in range(sl.lights.shape[0]):  # I_o: the direct sample, over the step
                     src += step_in_scatter_through_maps(m, sl, l, o, d, ta + float(k) * dt, dt, gs.shadow_steps)
                 if ms.lat.n > 0:  # the light scattered more than once, solved (in place of the glow)
-                    src += scattered_light(ms, scattering_at(m, x), x)
+                    src += scattered_light(ms, sig_s, x)
                 elif gs.glow != 0 and sl.lights.shape[0] > 0:  # I_s: the nearby particle's light
                     cell = cell_of(gs, x)
                     dbar = gs.density[cell]
@@ -238,7 +238,6 @@ def march_glow(offset: int, cam: RasterView, m: Media, s: Surfaces, sl: Shadowed
                                             wp.floor(x[2] / gs.cell)) + wp.vec3(0.5)) * gs.cell
                         c = base + (gs.k_c * (1.0 - dbar) * gs.cell) * dirn
                         beta = ((1.0 - dbar) + gs.c1) * gs.c2
-                        sig_s = scattering_at(m, x)
                         albedo = wp.cw_div(sig_s, wp.max(sig, wp.vec3(1.0e-30)))
                         src += w * wp.cw_mul(sig_s, particle_radiance(gs, sl, c, -dirn, beta, 0.5 * dt, albedo))
                 L += wp.cw_mul(wp.cw_mul(tr, src), step_integral_rgb(sig, dt))
@@ -357,7 +356,7 @@ class ParticleGlow(Technique):
         sl = self.light_volume.attach(self.sl)
         dev.launch(march_glow, npix, [camera_view(pinhole(scene.camera)), u.media.struct, u.surfaces, sl,
                                       self.glow_struct(), wp.vec3(*scene.background), self.multiple.struct(),
-                                      self.image], self.device)
+                                      self.image], self.device, work=self.settings["steps"] * max(1, len(scene.lights)))
 
     def diagnostics(self) -> dict:
         """``density``: the particle-density texture d (texels), as sampled by the march; with

@@ -55,7 +55,7 @@ from ..geometry.camera import camera_view
 from ..geometry.intersect import inside_box
 from ..geometry.mesh import Surfaces, occluded
 from ..geometry.raster import RasterView, view_ray
-from ..media.volume import Media, in_scatter_at, scattering_at, sigma_t_at
+from ..media.volume import Media, coefficients_at, in_scatter_at, in_scatter_from, scattering_at
 from ..physics.constants import INF, RAY_EPS
 from ..physics.lights import (Emitter, angle_point, angle_samples, angle_share, light_incident, step_angle,
                               step_mean_irradiance)
@@ -185,7 +185,7 @@ def march_single_scattering(offset: int, cam: RasterView, m: Media, s: Surfaces,
         dt = (tb - ta) / float(steps)
         for k in range(steps):
             x = o + (ta + (float(k) + 0.5) * dt) * d
-            sig = sigma_t_at(m, x, False)
+            sig, sig_s = coefficients_at(m, x)  # each medium looked up once a step
             if sig[0] > 0.0 or sig[1] > 0.0 or sig[2] > 0.0:
                 inscatter = wp.vec3(0.0)
                 t_mid = ta + (float(k) + 0.5) * dt
@@ -204,11 +204,14 @@ def march_single_scattering(offset: int, cam: RasterView, m: Media, s: Surfaces,
                             else:
                                 e = angle_share(lights[l], e, dist, h, phi, na, dt)
                             tl = light_at(m, s, l, xj, wi, dist, st, baked, st.shadow_steps)
-                            inscatter += wp.cw_mul(wp.cw_mul(in_scatter_at(m, xj, wp.dot(d, wi)), e), tl)
+                            ph = in_scatter_from(m, x, sig_s, wp.dot(d, wi))
+                            if na > 1:
+                                ph = in_scatter_at(m, xj, wp.dot(d, wi))
+                            inscatter += wp.cw_mul(wp.cw_mul(ph, e), tl)
                 if sky.directions.shape[0] > 0 and ms.lat.n == 0:  # else the lattice carries the sky
                     inscatter += sky_in_scatter(m, s, sky, x, d, st, baked)
                 if ms.lat.n > 0:
-                    inscatter += scattered_light(ms, scattering_at(m, x), x)
+                    inscatter += scattered_light(ms, sig_s, x)
                 f = step_integral_rgb(sig, dt)
                 L += wp.cw_mul(wp.cw_mul(tr, inscatter), f)
                 tr = wp.cw_mul(tr, transmittance_rgb(sig * dt))
@@ -314,7 +317,7 @@ class Raymarch(Technique):
         dev.launch(march_single_scattering, npix, [camera_view(pinhole(scene.camera)), u.media.struct, u.surfaces,
                                                    u.lights, sky, self._march_settings(), self.baked,
                                                    self.multiple.struct(), self.image],
-                   self.device)
+                   self.device, work=self.settings["steps"] * max(1, len(scene.lights)))
 
     def output(self):
         return self.image

@@ -643,7 +643,7 @@ class RBFPropagation(Technique):
         vols.albedo, vols.phase, vols.phase_table = albedo, phase, phase_table
         dev.launch(march_volumes, npix, [camera_view(pinhole(cam)), u.surfaces, u.lights, vols,
                                          self.settings["steps"], wp.vec3(*scene.background), self.multiple.struct(),
-                                         self.image], self.device)
+                                         self.image], self.device, work=self.settings["steps"])
 
     def output(self):
         return self.image
