@@ -121,15 +121,16 @@ def fog_box():
 
 
 def hazy_sun():
-    """Thin haze over a floor under the sun and a blue sky, a pillar casting a shaft: the
-    first render (``python -m warpvol demo``), where single scattering is most of the light."""
+    """Haze over a floor under a low sun behind it and a blue sky, a pillar casting a shaft that
+    the haze's forward scattering (g = 0.7) shows against the glow toward the sun: the first
+    render (``python -m warpvol demo``), where single scattering is most of the light."""
     return {
         "name": "hazy-sun",
-        "background": [0.12, 0.18, 0.32],
+        "background": [0.06, 0.09, 0.16],
         "camera": _camera(origin=(0.0, 0.6, 4.2), target=(0.0, -0.1, 0.0), fov_y=45.0),
-        "lights": [{"type": "directional", "direction": [-0.5, -1.0, -0.3], "irradiance": [3.0, 2.8, 2.4]}],
+        "lights": [{"type": "directional", "direction": [-0.35, -0.45, 0.8], "irradiance": [3.0, 2.8, 2.4]}],
         "media": [{"type": "homogeneous", "shape": "box", "center": [0, 0, 0], "size": [3.0, 2.0, 3.0],
-                   "sigma_t": [0.25, 0.32, 0.45], "albedo": 0.8, "phase": {"type": "hg", "g": 0.5}}],
+                   "sigma_t": [0.3, 0.38, 0.5], "albedo": 0.8, "phase": {"type": "hg", "g": 0.6}}],
         "surfaces": [{"type": "plane", "center": [0, -1.0, 0], "normal": [0, 1, 0], "size": [8.0, 8.0], "diffuse": 0.5},
                      {"type": "box", "center": [0.45, 0.2, -0.3], "size": [0.35, 2.4, 0.35], "diffuse": 0.6}],
     }
