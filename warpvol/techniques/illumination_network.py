@@ -526,10 +526,9 @@ class IlluminationNetwork(Technique):
                                                           Bias("light_samples", factor=4, order=1)))
     QUALITY_SEED = "direction_seed"
     # the window is the model's, not a discretisation with a limit: as M grows a window column
-    # holds fewer particles, the links fall away and multiple scattering with them (random cloud
-    # 5001: image mean 0.13 at M = 2, 0.057 at 16, 0.045 at 256). By the paper's rule it grows
-    # with D and moves the answer (12% a doubling); held at the default D's, the answer settles
-    # (order 1 in D)
+    # holds fewer particles, the links fall away and multiple scattering with them (the image mean
+    # falls as M grows: results/illumination-network-convergence). By the paper's rule it grows
+    # with D and moves the answer; held at the default D's, the answer settles (order 1 in D)
     QUALITY_HOLD = {"window_at": SETTINGS["directions"].default}
     LEAVES_OUT = ()
     GATHERS_SKY = True

@@ -137,8 +137,8 @@ SETTINGS = {
     "raster_tiles": Setting(-1, -1, 1, "1: one rasteriser thread per 16 x 16-pixel piece of a triangle (balanced "
                             "for GPUs); 0: one per triangle; -1: pieces on CUDA, triangles on the CPU"),
     "edges": Setting(1, 0, 1, "1: the block sum keeps to neighbours at a similar depth and rescales for the samples it "
-                     "leaves out (no halo at depth jumps; at 800x600, M = 4: a fifth of the error there for 8% more "
-                     "time, results/light-shafts-edges); 0: the paper's plain separable sum"),
+                     "leaves out (no halo at depth jumps; its error there and its cost: results/light-shafts-edges); 0: "
+                     "the paper's plain separable sum"),
     "edge_tolerance": Setting(0.1, 0.0, 10.0, "edges = 1: relative depth difference beyond which a neighbour is left out"),
     "light_ball": Setting(4.0, 0.0, 64.0, "radius, in M-pixel blocks at the light's distance, of the ball around each "
                           "point or spot light inside which every pixel marches its own ray at equiangular points "

@@ -70,10 +70,10 @@ SETTINGS = {
 }
 
 
-#: Russian roulette on the throughput starts after this many scattering events. Starting after 2
-#: made rbf-single and fog-box 1.4-1.6x faster for 1.2-1.3x the variance, but on a random scene
-#: (random_scene(2): a point light in a homogeneous box) target_error's 2 x 8192-spp check then
-#: needed 3618 spp where 592 do, and found the truth 2x its two-run estimate: heavy tails.
+#: Russian roulette on the throughput starts after this many scattering events. Starting earlier is
+#: faster per path on the built-in scenes, but a point light in a homogeneous box then needs several
+#: times the samples to the same noise and target_error's two-run estimate underrates the error:
+#: the paths' weights get heavy tails.
 ROULETTE_AFTER = wp.constant(5)
 
 
