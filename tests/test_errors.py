@@ -204,6 +204,27 @@ def test_set_nan_on_the_command_line(tmp_path, capsys):
     assert rc == 2 and "steps=nan is not finite (allowed: " in err and "convert" not in err, err
 
 
+def test_a_choice_takes_its_name():
+    """A choice setting takes its values' names (the API and ``--set``), stored as the number;
+    an unknown name is refused with the names and the closest of them."""
+    from warpvol.cli import _parse_set
+    from warpvol.pipeline import resolve_settings
+    from warpvol.techniques import TECHNIQUES
+
+    spec = TECHNIQUES["depth_impostors"].SETTINGS
+    assert resolve_settings("depth_impostors", spec, {"light_pass": "fourier", "object_depth": "billboards"}) == \
+        {**{k: s.default for k, s in spec.items()}, "light_pass": 2, "object_depth": 0}
+    settings, _ = _parse_set(["light_pass=exact"], "depth_impostors")
+    assert resolve_settings("depth_impostors", spec, settings)["light_pass"] == 0
+    with pytest.raises(wv.SettingsError) as err:
+        resolve_settings("depth_impostors", spec, {"light_pass": "fourir"})
+    assert "light_pass='fourir' is not one of its names; did you mean fourier? (allowed: 0 or 'exact', 1 or " \
+           "'slices', 2 or 'fourier';" in str(err.value), str(err.value)
+    with pytest.raises(wv.SettingsError) as err:  # a name where the setting has none
+        resolve_settings("depth_impostors", spec, {"slices": "many"})
+    assert "must be an integer" in str(err.value)
+
+
 # --- 6. messages that pointed the wrong way ------------------------------------------------------
 
 def test_setting_of_another_technique(tmp_path, capsys):

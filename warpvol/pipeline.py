@@ -39,10 +39,25 @@ class SettingsError(ValueError):
 
 @dataclass
 class Setting:
+    """A technique's setting: its default, its range [lo, hi] and what it does. ``names``: for a
+    choice, the name of each value lo, lo + 1, .. hi in turn; a name is accepted wherever the
+    number is (``light_pass="fourier"``, ``--set light_pass=fourier``) and stored as the number."""
+
     default: object
     lo: float
     hi: float
     doc: str
+    names: tuple[str, ...] = ()
+
+    def __post_init__(self):
+        if self.names and len(self.names) != int(self.hi - self.lo) + 1:
+            raise ValueError(f"Setting names {self.names}: one for each value {self.lo:g}..{self.hi:g}")
+
+    def allowed(self) -> str:
+        """The values it takes, for messages: the range, or each value with its name."""
+        if self.names:
+            return ", ".join(f"{int(self.lo) + i} or {n!r}" for i, n in enumerate(self.names))
+        return f"{self.lo:.10g}..{self.hi:.10g}"
 
 
 def resolve_settings(technique: str, spec: dict[str, Setting], given: dict, base: dict | None = None) -> dict:
@@ -54,7 +69,12 @@ def resolve_settings(technique: str, spec: dict[str, Setting], given: dict, base
                                 f"(allowed: {', '.join(sorted(spec))})")
         s = spec[key]
         kind = type(s.default)
-        allowed = f"allowed: {s.lo:.10g}..{s.hi:.10g}; {s.doc}"
+        allowed = f"allowed: {s.allowed()}; {s.doc}"
+        if isinstance(value, str) and s.names:
+            if value not in s.names:
+                raise SettingsError(f"{technique}: setting {key}={value!r} is not one of its names{did_you_mean(value, s.names)} "
+                                    f"({allowed})")
+            value = int(s.lo) + s.names.index(value)
         if isinstance(value, float) and not np.isfinite(value):
             raise SettingsError(f"{technique}: setting {key}={value!r} is not finite ({allowed})")
         if isinstance(value, bool) or not isinstance(value, (int, float)) or (kind is int and int(value) != value):

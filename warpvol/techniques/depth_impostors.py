@@ -103,7 +103,8 @@ SETTINGS = {
                                      "(neighbours in Morton order); 1: every particle on its own"),
     "slices": Setting(4, 1, 1024, "light-pass depth slices S (the paper: 4, in one RGBA texture)"),
     "light_pass": Setting(1, 0, 2, "0 exact transmittance (BVH ray queries; the sky's too), 1 depth slices, "
-                                    "2 Fourier opacity map (the sky: depth slices for 1 and 2)"),
+                                    "2 Fourier opacity map (the sky: depth slices for 1 and 2)",
+                          names=REPRESENTATIONS),
     "light_terms": Setting(8, 1, 256, "Fourier terms K (light_pass = 2)"),
     "light_texels": Setting(0, 0, 1024, "light-pass texels per face side; 0: 4 R / r (half a median radius)"),
     "light_blocks": Setting(1, 0, 1, "1: a cloud built of blocks is splatted into the light pass block by block, "
@@ -116,7 +117,8 @@ SETTINGS = {
                                      "ring this many median particle radii across, weighted by the phase function; "
                                      "0: off"),
     "object_depth": Setting(1, 0, 1, "1: depth impostors (a block's opacity cut where a surface lies inside its "
-                                     "depth interval); 0: billboards (a block at its centre plane, as the paper fixes)"),
+                                     "depth interval); 0: billboards (a block at its centre plane, as the paper fixes)",
+                                     names=("billboards", "impostors")),
     **MS_SETTINGS,
 }
 

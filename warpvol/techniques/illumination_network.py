@@ -127,7 +127,8 @@ SETTINGS = {
                                    "e.g. HG g >= 0.9 at D = 128)"),
     "light_samples": Setting(16, 1, 1024, "points of a sphere whose transmittance to a light is averaged (1: centre)"),
     "light_pass": Setting(1, 0, 2, "transmittance to the lights: 0 exact (BVH ray queries), 1 depth slices, "
-                                   "2 Fourier opacity map (media/lightpass.py)"),
+                                   "2 Fourier opacity map (media/lightpass.py)",
+                          names=REPRESENTATIONS),
     "light_slices": Setting(32, 1, 1024, "depth slices S of the light pass"),
     "light_terms": Setting(16, 1, 256, "Fourier terms K of the light pass"),
     "light_texels": Setting(0, 0, 1024, "light-pass texels per face side; 0: 4 R / r (half a median radius)"),

@@ -132,10 +132,13 @@ SETTINGS = {
     "scattering": Setting(1, 0, 1, "0: surfaces only (the paper's 'no scattering' row)"),
     "shadow_steps": Setting(32, 1, 1 << 16, "steps toward a light through grid media (the others: closed form)"),
     "seed": Setting(0, 0, 2**31 - 1, "random seed of the jitter"),
-    "spacing": Setting(1, 0, 1, "0: the paper's dl = s / N per ray; 1: dl = (media segment) / N, shared by neighbours"),
-    "raster": Setting(1, 0, 1, "1: shadow maps and the visible surface by rasterising triangles; 0: by BVH ray casts"),
+    "spacing": Setting(1, 0, 1, "0: the paper's dl = s / N per ray; 1: dl = (media segment) / N, shared by neighbours",
+                       names=("paper", "media")),
+    "raster": Setting(1, 0, 1, "1: shadow maps and the visible surface by rasterising triangles; 0: by BVH ray casts",
+                      names=("rays", "raster")),
     "raster_tiles": Setting(-1, -1, 1, "1: one rasteriser thread per 16 x 16-pixel piece of a triangle (balanced "
-                            "for GPUs); 0: one per triangle; -1: pieces on CUDA, triangles on the CPU"),
+                            "for GPUs); 0: one per triangle; -1: pieces on CUDA, triangles on the CPU",
+                            names=("auto", "triangles", "pieces")),
     "edges": Setting(1, 0, 1, "1: the block sum keeps to neighbours at a similar depth and rescales for the samples it "
                      "leaves out (no halo at depth jumps; its error there and its cost: results/light-shafts-edges); 0: "
                      "the paper's plain separable sum"),

@@ -104,7 +104,8 @@ SETTINGS = {
     "exponent": Setting(0.4, 0.0, 100.0, "equation 1: I_s weighs 1 - (1 - d)^exponent"),
     "mu": Setting(0.5, -100.0, 100.0, "the density distribution's mu (log-normal: of ln x)"),
     "sigma": Setting(0.5, 1.0e-6, 100.0, "the density distribution's sigma (log-normal: of ln x)"),
-    "density_cdf": Setting(0, 0, 1, "0: log-normal CDF (the text); 1: normal CDF (equation 2 as printed)"),
+    "density_cdf": Setting(0, 0, 1, "0: log-normal CDF (the text); 1: normal CDF (equation 2 as printed)",
+                           names=("lognormal", "normal")),
     "density_x": Setting(10.0, 1.0e-6, 1.0e6, "each cell's x is drawn uniformly in (0, density_x]; d = CDF(x) "
                                             "(10: figure 5's mu = 2, sigma = 0.1 sparse, mu = 0 dense)"),
     "cell": Setting(0.0, 0.0, 1.0e6, "side of a density cell, scene units; 0: the media's bounding diagonal / 64"),
@@ -113,7 +114,7 @@ SETTINGS = {
     "direction_seed": Setting(1, 0, 2**31 - 1, "seed of the direction texture"),
     "anchor": Setting(0, 0, 1, "where the nearby particle is placed from: 0 the march point R_i (equation 4, the "
                                "paper); 1 the centre of R_i's cell (the particle fixed in the world: no shimmer "
-                               "as the march points slide with the camera)"),
+                               "as the march points slide with the camera)", names=("march", "cell")),
     "specular": Setting(0.0, 0.0, 1.0e3, "k_s of the specular term the paper dropped (appendix B, equation 8); 0: off"),
     "shininess": Setting(20.0, 1.0, 1.0e4, "Phong exponent n of the specular term"),
     **MS_SETTINGS,

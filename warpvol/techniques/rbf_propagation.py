@@ -101,7 +101,8 @@ NAME = "rbf_propagation"
 SETTINGS = {
     "grid": Setting(20, 1, 512, "cells per axis of the extinction and opacity volumes"),
     "steps": Setting(64, 1, 1 << 16, "ray-march steps across the grid's diagonal"),
-    "rule": Setting(1, 0, 1, "0: the paper's equation 6 as printed; 1: corrected, optical depth in physical units"),
+    "rule": Setting(1, 0, 1, "0: the paper's equation 6 as printed; 1: corrected, optical depth in physical units",
+                    names=("printed", "corrected")),
     "wavefront": Setting(1, 0, 1, "1: update only the wavefront shell per step; 0: sweep the whole grid"),
     "iterations": Setting(0, 0, 1 << 16, "whole-grid sweeps when wavefront = 0 (0: 3 x grid)"),
     **MS_SETTINGS,
