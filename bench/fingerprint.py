@@ -3,7 +3,7 @@ its technique and settings made when the row was measured, and ``bench report --
 the probes again and lists the pages whose images have changed since.
 
 A probe is the row's scene (a built-in, or a file under ``scenes/``, named by the row's
-``scene``) at PROBE_SIZE, rendered on the CPU with the row's technique and the settings its
+``scene``; or the scene table a sweep built it from, ``scene_table``, kept in the probe) at PROBE_SIZE, rendered on the CPU with the row's technique and the settings its
 parameters name (the reference at PROBE_SPP samples, seeded: deterministic), kept as the image's
 means over PROBE_BLOCKS blocks. A refactor leaves them to float rounding; a change of what a row
 measures moves them. The tolerance, PROBE_RTOL of the image's mean, is far above rounding (1e-6)
@@ -33,6 +33,10 @@ SCENES = Path(__file__).resolve().parent.parent / "scenes"
 
 
 def _scene_source(row: dict):
+    """What a probe loads: the row's scene table (a dict, as ``wv.load_scene`` takes it), or the
+    built-in or ``scenes/`` file its ``scene`` names; None for neither."""
+    if isinstance(row.get("scene_table"), dict):
+        return row["scene_table"]
     name = str(row.get("scene", "")).split(" ")[0].rstrip(",")
     if name in BUILTIN:
         return name
@@ -66,9 +70,10 @@ def probe_image(spec: dict) -> list[float]:
     return [float(f"{v:.6g}") for v in blocks.ravel()]
 
 
-def probe(row: dict) -> dict | None:
-    """The probe to store with a freshly measured row (None where it has none or it fails)."""
-    spec = probe_spec(row)
+def probe(row: dict, scene_table: dict | None = None) -> dict | None:
+    """The probe to store with a freshly measured row (None where it has none or it fails);
+    ``scene_table``: the table the row's scene was built from, where it names no file."""
+    spec = probe_spec({**row, "scene_table": scene_table} if scene_table is not None else row)
     if spec is None:
         return None
     try:
@@ -89,6 +94,10 @@ def changed(stored: dict) -> str | None:
     return f"its probe moved by {moved:.2g} of its mean" if moved > PROBE_RTOL else None
 
 
+def _scene_name(source) -> str:
+    return source.get("name", "a scene table") if isinstance(source, dict) else Path(source).stem
+
+
 def page_status(path: Path) -> dict:
     """``{"status": "current" | "changed" | "unprobed", "why": ...}`` for one page's JSON."""
     doc = json.loads(Path(path).read_text())
@@ -104,13 +113,13 @@ def page_status(path: Path) -> dict:
     per: dict[tuple, int] = {}
     for r in probed:
         t = r["probe"]["technique"]
-        key = (t, r["probe"]["scene"])
+        key = (t, json.dumps(r["probe"]["scene"], sort_keys=True))
         if per.get(key, 0) >= CHECK_PER_TECHNIQUE:
             continue
         per[key] = per.get(key, 0) + 1
         why = changed(r["probe"])
         if why:
-            return {"status": "changed", "why": f"{t} on {Path(r['probe']['scene']).stem}: {why}",
+            return {"status": "changed", "why": f"{t} on {_scene_name(r['probe']['scene'])}: {why}",
                     "commit": r.get("commit")}
     unprobed = len(rows) - len(probed)
     note = f"; {unprobed} rows whose scene takes no probe" if unprobed else ""

@@ -286,13 +286,14 @@ def measure_point(sweep, params: dict, device: str | None, quick: bool) -> dict:
     with PeakMemory(device) as mem:
         row = sweep.measure(params, device, quick)
     row.pop("frame", None)
+    table = row.pop("scene_table", None)  # the table a generated scene was built from: its probe's scene
     row = {"sweep": sweep.name, "technique": sweep.technique, "params": params, **row,
            "peak_mem_mb": round(mem.mb, 1), "device": device_name(device), "host": socket.gethostname(),
            "warp": wp.config.version,
            "commit": git_commit(), "paper": sweep.paper_figure(params),
            "measured": time.strftime("%Y-%m-%d %H:%M:%S")}
     if not quick:  # what bench report --stale renders again (bench/fingerprint.py)
-        row["probe"] = probe(row)
+        row["probe"] = probe(row, table)
     return row
 
 

@@ -74,8 +74,9 @@ def _save(fig, ax, png: Path, grid: bool = True) -> None:
 def accuracy_section(rows: list[dict], png: Path) -> list[str]:
     pts = [(r["median_ms"], r["rel_rmse_corrected"]) for r in rows]
     front = set(pareto_front(pts))
-    extra = next((k for k in ("rel_rmse_raymarch", "rel_rmse_multiple") if k in rows[0]), None)  # a second yardstick
-    label = {"rel_rmse_raymarch": "vs raymarch", "rel_rmse_multiple": "vs the multiple-scattering reference"}
+    extra = next((k for k in ("rel_rmse_raymarch", "rel_rmse_multiple", "mean_ratio") if k in rows[0]), None)  # a second yardstick
+    label = {"rel_rmse_raymarch": "vs raymarch", "rel_rmse_multiple": "vs the multiple-scattering reference",
+             "mean_ratio": "image mean ÷ the reference's"}
     lines = ["| parameters | ms / frame (min..max) | relative RMSE to the reference | same, its noise removed "
              + (f"| {label[extra]} " if extra else "") + "| on the front | stages ran (ms) | peak MB |",
              "|---|---|---|---|---|---|---|" + ("---|" if extra else "")]
@@ -91,6 +92,17 @@ def accuracy_section(rows: list[dict], png: Path) -> list[str]:
     if "rel_rmse_band" in rows[0]:  # objects in clouds: the error where the surface lies inside the cloud
         lines += ["", "| parameters | relative RMSE where the surface lies inside a block | pixels |", "|---|---|---|"]
         lines += [f"| {_params(r)} | {r['rel_rmse_band']:.4f} | {r['band_pixels']} |" for r in rows]
+    if "rel_rmse_core" in rows[0]:  # a light's singular core apart from the rest of the image
+        lines += ["", "| parameters | RMSE in the lamp's core ÷ image mean | outside it ÷ image mean | core pixels |",
+                  "|---|---|---|---|"]
+        lines += [f"| {_params(r)} | {r['rel_rmse_core']:.4f} | {r['rel_rmse_rest']:.4f} | {r['core_pixels']} |"
+                  for r in rows]
+        from .sweeps.particle_glow import CORE_ANGLE
+
+        lines += ["", "Against the multiple-scattering reference, the error split at the lamp's core (the pixels "
+                  f"within {CORE_ANGLE:g} rad of the lamp as the camera sees it) and the rest; both are RMSEs over their own "
+                  "pixels divided by the whole image's mean, so the image's squared error is their squares weighted "
+                  "by their shares of the pixels."]
     floor = rows[0]["reference"]["rel_rmse_floor"]
     lines += ["", f"Reference: {rows[0]['reference']['spp']} spp, pixel centres, max_bounces = "
               f"{rows[0]['reference']['max_bounces']}. Its own noise, estimated from two seeds, is a relative "

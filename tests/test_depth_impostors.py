@@ -346,3 +346,14 @@ def test_media_order_does_not_change_the_image(device):
         images.append(r.render().image)
         assert r.diagnostics()["instances"] == 3 + 12
     assert np.max(np.abs(images[0] - images[1])) < 1e-5 * np.max(images[0])
+
+
+def test_a_surface_in_the_cloud_is_named_as_not_shadowing_it(device):
+    """The light pass holds the particles alone: with a surface and a light the frame says the
+    surface's shadow on the cloud is left out, and without a surface it does not."""
+    plane = {"type": "plane", "center": [0, 0, 0], "normal": [0, 0, 1], "size": [3, 3], "diffuse": 0.5}
+    with_plane = wv.Renderer(block_scene(surfaces=[plane]), technique="depth_impostors", device=device)
+    without = wv.Renderer(block_scene(), technique="depth_impostors", device=device)
+    says = "the surfaces' shadows on the cloud"
+    assert any(says in x for x in with_plane.technique.leaves_out())
+    assert not any(says in x for x in without.technique.leaves_out())

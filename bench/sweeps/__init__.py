@@ -107,6 +107,10 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
           "solution, iterating from zero, 1024 particles, 128 directions, albedo 0.9 and 0.99, HG g = 0 (isotropic), the "
           "window by the paper's rule (window=0, M = 70), M = 16, and M from 4 particles per column (column=4)",
           "illumination_network", "convergence", illumination_network.convergence_grid, illumination_network.convergence),
+    Sweep("illumination-network-anisotropy", "illumination_network against the multiple-scattering reference on "
+          "forward-scattering particles (HG g = 0, 0.6, 0.9): the phase matrix as tabulated (phase_norm=0, the paper's) "
+          "or scaled doubly stochastic (phase_norm=1, the default), D = 64 and 256, 1024 particles, 48x48",
+          "illumination_network", "accuracy", illumination_network.anisotropy_grid, illumination_network.anisotropy),
     Sweep("illumination-network-accuracy", "illumination_network: converged image against the multiple-scattering "
           "reference vs ms per frame (lights moving), over N, D and the window M (given, the paper's rule, or from "
           "particles per column), HG g = 0 (isotropic), 48x48",

@@ -95,3 +95,27 @@ def score_against_reference(row: dict, scene, device: str, spp: int) -> dict:
     """``score`` in single scattering; returns the row."""
     score(row, scene, device, spp)
     return row
+
+
+def pixel_directions(cam) -> np.ndarray:
+    """(H, W, 3) unit directions of a pinhole camera's rays through the pixel centres (numpy, as
+    the kernels' ``view_ray``), for masks a sweep measures over."""
+    o = np.asarray(cam.origin, float)
+    f = np.asarray(cam.target, float) - o
+    f /= np.linalg.norm(f)
+    rgt = np.cross(f, cam.up)
+    rgt /= np.linalg.norm(rgt)
+    up = np.cross(rgt, f)
+    th = np.tan(np.radians(cam.fov_y) / 2)
+    px, py = np.meshgrid(np.arange(cam.width) + 0.5, np.arange(cam.height) + 0.5)
+    sx, sy = 2 * px / cam.width - 1, 1 - 2 * py / cam.height
+    d = f + sx[..., None] * rgt * th * cam.width / cam.height + sy[..., None] * up * th
+    return d / np.linalg.norm(d, axis=-1, keepdims=True)
+
+
+def near_point(cam, point, angle: float) -> np.ndarray:
+    """(H, W) mask of the pixels whose ray passes ``point`` (in front of the camera) closer than
+    ``angle`` radians as seen from the camera: a light's core on the image."""
+    rel = np.asarray(point, float) - np.asarray(cam.origin, float)
+    cos = pixel_directions(cam) @ (rel / np.linalg.norm(rel))
+    return cos > np.cos(angle)

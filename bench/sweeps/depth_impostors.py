@@ -9,7 +9,7 @@ import numpy as np
 import warpvol as wv
 
 from ..harness import reference_image, time_frames
-from .common import score
+from .common import pixel_directions, score
 
 
 IMPOSTOR_SUN = {"type": "directional", "direction": [0.5, -0.8, -0.3], "irradiance": 2.0}
@@ -17,7 +17,13 @@ IMPOSTOR_SUN = {"type": "directional", "direction": [0.5, -0.8, -0.3], "irradian
 
 def impostor_scene(quick: bool, n: int = 8000, per_block: int = 200, width: int = 512, surface: bool = False,
                    seed: int = 3):
-    """Umenhoffer & Szirmay-Kalos 2005's set-up: ``n`` particles built of n / per_block copies of one block (one
+    """The Scene of ``impostor_table``."""
+    return wv.load_scene(impostor_table(quick, n, per_block, width, surface, seed))
+
+
+def impostor_table(quick: bool, n: int = 8000, per_block: int = 200, width: int = 512, surface: bool = False,
+                   seed: int = 3) -> dict:
+    """As a scene table: Umenhoffer & Szirmay-Kalos 2005's set-up: ``n`` particles built of n / per_block copies of one block (one
     particle a block: the paper's "no blocks"), one directional light. The block's radius
     scales as (per_block / n)^(1/3), so the cloud's volume and density stay put; particle
     radius 0.04 x (8000 / n)^(1/3), sigma_t 12 (sigma_t r = 0.48 at 8000), albedo 0.9, HG
@@ -39,7 +45,7 @@ def impostor_scene(quick: bool, n: int = 8000, per_block: int = 200, width: int 
     if surface:
         d["surfaces"] = [{"type": "plane", "center": [0.0, 0.0, 0.0], "normal": [0.3, 0.2, 1.0], "size": [4.0, 4.0],
                           "diffuse": 0.5}]
-    return wv.load_scene(d)
+    return d
 
 
 IMPOSTOR_FIG5_NOTE = """\
@@ -109,10 +115,11 @@ def impostor_frame(params: dict, device: str, quick: bool) -> dict:
     n = params.get("particles", 8000)
     blocks = params.get("blocks")
     per_block = params.get("per_block") or (1 if not blocks else n // blocks)
-    scene = impostor_scene(quick, n, per_block, params.get("width", 512))
+    table = impostor_table(quick, n, per_block, params.get("width", 512))
     paper = params.get("setup") == "paper"
     if paper:
-        scene = dataclasses.replace(scene, background=(0.0, 0.0, 0.0))
+        table["background"] = [0.0, 0.0, 0.0]
+    scene = wv.load_scene(table)
     r = wv.Renderer(scene, technique="depth_impostors", multiple_scattering=0, device=device)
     repeats = 2 if quick else 8
     row = _moving_frames(r, scene, repeats) if paper else time_frames(r, repeats, invalidate=("medium", "lights"))
@@ -122,7 +129,8 @@ def impostor_frame(params: dict, device: str, quick: bool) -> dict:
                light_template_texels=d["light_template_texels"],
                scene=f"{len(scene.media[0].positions)} particles, {d['instances']} instances of {per_block}, "
                      f"{scene.camera.width}x{scene.camera.height}, "
-                     + ("one sun, black sky, camera and sun moving" if paper else "one sun and a dim sky, camera fixed"))
+                     + ("one sun, black sky, camera and sun moving" if paper else "one sun and a dim sky, camera fixed"),
+               scene_table=table)
     return row
 
 
@@ -161,7 +169,8 @@ def impostor_accuracy(params: dict, device: str, quick: bool) -> dict:
     40 blocks of 50 (96x96); and how much the technique leaves out: the single-scattering
     reference's mean over the multiple-scattering one's."""
     n, b, w = (400, 20, 24) if quick else (2000, 50, 96)
-    scene = impostor_scene(quick, n, b, w)
+    table = impostor_table(quick, n, b, w)
+    scene = wv.load_scene(table)
     r = wv.Renderer(scene, technique="depth_impostors", multiple_scattering=0, device=device, **_impostor_settings(params))
     row = time_frames(r, repeats=2 if quick else 5, invalidate=("medium", "lights"))
     spp = 16 if quick else 256
@@ -173,6 +182,7 @@ def impostor_accuracy(params: dict, device: str, quick: bool) -> dict:
     row["single_of_multiple"] = float(ref.mean() / ms.mean())
     row["impostor_res"] = r.diagnostics()["impostor_res"]
     row["scene"] = f"{n} particles in {n // b} blocks of {b}, {w}x{w}, one sun"
+    row["scene_table"] = table
     return row
 
 
@@ -181,16 +191,7 @@ def _plane_in_blocks(scene, centres: np.ndarray, reach: np.ndarray) -> np.ndarra
     bounding sphere (where depth impostors and billboards differ)."""
     cam, plane = scene.camera, scene.surfaces[0]
     o = np.asarray(cam.origin, float)
-    f = np.asarray(cam.target, float) - o
-    f /= np.linalg.norm(f)
-    rgt = np.cross(f, cam.up)
-    rgt /= np.linalg.norm(rgt)
-    up = np.cross(rgt, f)
-    th = np.tan(np.radians(cam.fov_y) / 2)
-    px, py = np.meshgrid(np.arange(cam.width) + 0.5, np.arange(cam.height) + 0.5)
-    sx, sy = 2 * px / cam.width - 1, 1 - 2 * py / cam.height
-    d = f + sx[..., None] * rgt * th * cam.width / cam.height + sy[..., None] * up * th
-    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    d = pixel_directions(cam)
     v = np.asarray(plane.vertices, float)
     n = np.cross(v[1] - v[0], v[2] - v[0])
     n /= np.linalg.norm(n)
@@ -211,7 +212,8 @@ def impostor_objects(params: dict, device: str, quick: bool) -> dict:
     the plane lies inside the cloud (the reference's cloud changes there by over 2%)."""
     n, w = (400, 24) if quick else (2000, 96)
     b = params["per_block"]
-    scene = impostor_scene(quick, n, b, w, surface=True)
+    table = impostor_table(quick, n, b, w, surface=True)
+    scene = wv.load_scene(table)
     r = wv.Renderer(scene, technique="depth_impostors", multiple_scattering=0, device=device, object_depth=params["object_depth"],
                     light_pass=0)
     row = time_frames(r, repeats=2 if quick else 5, invalidate=("medium", "lights"))
@@ -222,5 +224,6 @@ def impostor_objects(params: dict, device: str, quick: bool) -> dict:
     row["rel_rmse_band"] = wv.relative_rmse(image[band], ref[band]) if band.any() else float("nan")
     row["scene"] = (f"{n} particles in {n // b} blocks of {b}, a plane through the cloud, {w}x{w}; band: the "
                     f"{row['band_pixels']} pixels where the plane lies inside a block's bounding sphere")
+    row["scene_table"] = table
     row["images"] = {"image": image}
     return row

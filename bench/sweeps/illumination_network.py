@@ -15,10 +15,17 @@ SUN2 = {"type": "directional", "direction": [0.6, 0.8, -0.3], "irradiance": 1.5}
 
 
 def network_scene(quick: bool, n: int = 1024, width: int = 512, albedo: float = 0.9, sky: bool = True,
-                   seed: int = 1, lights: list | None = None):
-    """particle-cloud as in the paper's results: ``n`` particles (radius scaled by n^(-1/3)
-    so the cloud's volume stays put), albedo 0.9, g = 0, 2 R tau = 20 expected collisions
-    across it, two directional lights (or ``lights``) and sky."""
+                   seed: int = 1, lights: list | None = None, g: float = 0.0):
+    """The Scene of ``network_table``."""
+    return wv.load_scene(network_table(quick, n, width, albedo, sky, seed, lights, g))
+
+
+def network_table(quick: bool, n: int = 1024, width: int = 512, albedo: float = 0.9, sky: bool = True,
+                  seed: int = 1, lights: list | None = None, g: float = 0.0) -> dict:
+    """particle-cloud as in the paper's results, as a scene table: ``n`` particles (radius scaled
+    by n^(-1/3) so the cloud's volume stays put), albedo 0.9, HG ``g`` (0: the paper's isotropic
+    phase), 2 R tau = 20 expected collisions across it, two directional lights (or ``lights``)
+    and sky."""
     from warpvol.scene.procedural import particle_cloud
 
     d = particle_cloud()
@@ -31,8 +38,8 @@ def network_scene(quick: bool, n: int = 1024, width: int = 512, albedo: float = 
     d["lights"] = lights if lights is not None else [d["lights"][0], SUN2]
     d["background"] = d["background"] if sky else [0.0, 0.0, 0.0]
     d["media"][0].update(generator={"kind": "cloud", "count": n, "seed": seed, "extent": 1.2}, radius=radius,
-                         sigma_t=sigma, albedo=albedo, phase={"type": "hg", "g": 0.0})
-    return wv.load_scene(d)
+                         sigma_t=sigma, albedo=albedo, phase={"type": "hg", "g": g})
+    return d
 
 
 FP32_PEAK_GFLOPS = {"NVIDIA H200": 67_000.0}  # vendor figure, FP32 without tensor cores
@@ -78,7 +85,8 @@ def network_frame(params: dict, device: str, quick: bool) -> dict:
     import warp as wp
 
     n, D = params["particles"], params["directions"]
-    scene = network_scene(quick, n, params.get("width", 512))
+    table = network_table(quick, n, params.get("width", 512))
+    scene = wv.load_scene(table)
     r = wv.Renderer(scene, technique="illumination_network", device=device, directions=D,
                     window=params.get("window", 0), iterations=1, tolerance=0.0)
     row = time_frames(r, repeats=2 if quick else 10, invalidate=("camera", "lights"))
@@ -99,7 +107,7 @@ def network_frame(params: dict, device: str, quick: bool) -> dict:
     row.update(iteration_ms=it * 1000.0, gflops=gflops, peak_gflops=peak,
                peak_fraction=gflops / peak if peak else None, window=r.diagnostics()["window"],
                network_ms=sorted(builds)[len(builds) // 2],
-               scene=f"{n} particles, {scene.camera.width}x{scene.camera.height}, 2 suns + sky")
+               scene=f"{n} particles, {scene.camera.width}x{scene.camera.height}, 2 suns + sky", scene_table=table)
     return row
 
 
@@ -166,7 +174,8 @@ def network_accuracy(params: dict, device: str, quick: bool) -> dict:
     """The converged image against the multiple-scattering reference on the same particles
     (48x48 at pixel centres), the window from the paper's rule (window = 0) or given."""
     w = 24 if quick else 48
-    scene = network_scene(quick, params["particles"], w)
+    table = network_table(quick, params["particles"], w)
+    scene = wv.load_scene(table)
     r = wv.Renderer(scene, technique="illumination_network", device=device, iterations=2000, tolerance=1e-5,
                     directions=params["directions"], window=params["window"], column=params.get("column", 0))
     row = time_frames(r, repeats=1 if quick else 2, invalidate=("lights",))
@@ -175,6 +184,31 @@ def network_accuracy(params: dict, device: str, quick: bool) -> dict:
     ref = score(row, scene, device, 16 if quick else 128, max_bounces=-1)
     row["mean_ratio"] = float(row["frame"].image.mean() / ref.mean())
     row["scene"] = f"{params['particles']} particles {w}x{w}"
+    row["scene_table"] = table
+    return row
+
+
+def anisotropy_grid(quick: bool) -> list[dict]:
+    if quick:
+        return [{"g": g, "phase_norm": k, "directions": 32} for g in (0.0, 0.9) for k in (0, 1)]
+    return [{"g": g, "phase_norm": k, "directions": d} for g in (0.0, 0.6, 0.9) for k in (0, 1) for d in (64, 256)]
+
+
+def anisotropy(params: dict, device: str, quick: bool) -> dict:
+    """The network against the all-orders reference on the paper's cloud with forward-scattering
+    particles (HG g), the phase matrix as tabulated (``phase_norm`` 0, the paper's) or scaled
+    doubly stochastic (1, the default), at D directions: what the normalisation buys where the
+    lobe is narrow against the directions' spacing."""
+    w = 24 if quick else 48
+    table = network_table(quick, 256 if quick else 1024, w, g=params["g"])
+    scene = wv.load_scene(table)
+    r = wv.Renderer(scene, technique="illumination_network", device=device, iterations=2000, tolerance=1e-5,
+                    directions=params["directions"], phase_norm=params["phase_norm"])
+    row = time_frames(r, repeats=1 if quick else 2, invalidate=("lights",))
+    ref = score(row, scene, device, 16 if quick else 128, max_bounces=-1)
+    row["mean_ratio"] = float(row["frame"].image.mean() / ref.mean())
+    row["scene"] = f"{len(scene.media[0].positions)} particles, HG g = {params['g']}, {w}x{w}"
+    row["scene_table"] = table
     return row
 
 
@@ -210,7 +244,8 @@ def lightpass_accuracy(params: dict, device: str, quick: bool) -> dict:
     converged image against the image from that exact direct light (how far the image moves)
     and against the reference; the direct stage's time with both suns moving each frame."""
     n, w = (128, 24) if quick else (1024, 48)
-    scene = network_scene(quick, n, w)
+    table = network_table(quick, n, w)
+    scene = wv.load_scene(table)
     settings = {"light_tolerance": 0.0, **params}  # no fallback: measure the representation itself
     r = wv.Renderer(scene, technique="illumination_network", device=device, iterations=2000, tolerance=1e-5,
                     **settings)
@@ -224,6 +259,7 @@ def lightpass_accuracy(params: dict, device: str, quick: bool) -> dict:
     row["image_move"] = wv.relative_rmse(image, truth_image)
     score(row, scene, device, 16 if quick else 128, max_bounces=-1)
     row["scene"] = f"{n} particles {w}x{w}, 2 suns + sky, D = 128"
+    row["scene_table"] = table
     return row
 
 
@@ -260,6 +296,7 @@ def lightpass_scaling(params: dict, device: str, quick: bool) -> dict:
     scene = wv.load_scene(d)
     r = wv.Renderer(scene, technique="illumination_network", device=device, directions=128, iterations=1)
     row = time_frames(r, repeats=3 if quick else 8, invalidate=None, before=turning_suns(r))
+    row["scene_table"] = d
     diag = r.diagnostics()
     row["table"] = {"direct ms": row["stages"]["direct"]["median_ms"], "texels": diag["light_texels"],
                     "refined": diag["light_refined"], "error": diag["light_error"], "fell back": diag["light_fell_back"]}
@@ -289,7 +326,8 @@ def lights_cost(params: dict, device: str, quick: bool) -> dict:
         ring = np.sqrt(1.0 - y * y)
         suns.append({"type": "directional", "direction": [ring * np.cos(phi), y, ring * np.sin(phi)],
                      "irradiance": 3.0 / k})
-    scene = network_scene(quick, 1024, w, sky=bool(params["sky"]), lights=suns)
+    table = network_table(quick, 1024, w, sky=bool(params["sky"]), lights=suns)
+    scene = wv.load_scene(table)
     r = wv.Renderer(scene, technique="illumination_network", device=device, directions=128, iterations=1)
     row = time_frames(r, repeats=3 if quick else 8, invalidate=None, before=turning_suns(r))
     stage = {k2: v["median_ms"] for k2, v in row["stages"].items() if v.get("status") == "ran"}
@@ -297,6 +335,7 @@ def lights_cost(params: dict, device: str, quick: bool) -> dict:
                     "iterate ms": stage.get("iterate", 0.0), "splat ms": stage.get("splat", 0.0)}
     row["scene"] = (f"1024 particles, {w}x{w}, D = 128, k directional lights (total irradiance 3) turning 3 degrees a "
                     "frame, black or blue sky")
+    row["scene_table"] = table
     return row
 
 

@@ -513,7 +513,9 @@ class DepthImpostors(Technique):
         check_ms_settings(NAME, settings)
 
     def leaves_out(self) -> list[str]:
-        return [*ms_leaves_out(self.settings), *super().leaves_out()]
+        shadows = (["the surfaces' shadows on the cloud (the light pass holds the particles alone)"]
+                   if self.scene.surfaces and self.scene.lights else [])
+        return [*ms_leaves_out(self.settings), *super().leaves_out(), *shadows]
 
     def stages(self):
         surfaces = bool(self.scene.surfaces)
