@@ -136,7 +136,8 @@ def convergence(params: dict, device: str, quick: bool) -> dict:
     import numpy as np
 
     iters = 20 if quick else 300
-    scene = network_scene(quick, 1024, 256, albedo=params["albedo"])
+    table = network_table(quick, 1024, 256, albedo=params["albedo"])
+    scene = wv.load_scene(table)
     r = wv.Renderer(scene, technique="illumination_network", device=device, iterations=0,
                     window=params.get("window", 0), column=params.get("column", 0))
     r.render()
@@ -157,7 +158,7 @@ def convergence(params: dict, device: str, quick: bool) -> dict:
     final = shown[iters]
     net_err = [float(np.sqrt(((x - converged) ** 2).sum() / (converged**2).sum())) for x in nets]
     img_err = {k: wv.relative_rmse(v, final) for k, v in shown.items()}
-    return untimed_row(iters, change=changes, network_error=net_err,
+    return untimed_row(iters, change=changes, network_error=net_err, scene_table=table,
                        image_error={str(k): v for k, v in img_err.items()},
                        images={str(k): v for k, v in shown.items() if k in CONVERGENCE_SHOWN})
 
@@ -361,7 +362,8 @@ def albedo_bound(params: dict, device: str, quick: bool) -> dict:
     RMSE of the single-scattering image (iterations = 0) against the reference with one
     scattering event, the total is the converged image's RMSE against the unlimited one."""
     w, spp = (24, 16) if quick else (32, 256)
-    scene = network_scene(quick, 256, w, albedo=params["albedo"], sky=False)
+    table = network_table(quick, 256, w, albedo=params["albedo"], sky=False)
+    scene = wv.load_scene(table)
     out = {}
     for bounces, settings in ((1, {"iterations": 0}), (-1, {"iterations": 3000, "tolerance": 1e-6})):
         r = wv.Renderer(scene, technique="illumination_network", device=device, directions=128, **settings)
@@ -372,7 +374,7 @@ def albedo_bound(params: dict, device: str, quick: bool) -> dict:
     a = params["albedo"]
     return untimed_row(1, eps_rmse=eps, total_rmse=total, bound=eps / (1 - a), holds=bool(total <= eps / (1 - a)),
                        ss_rms=out[1][1], ms_rms=out[-1][1], reference_floor=[out[1][2], out[-1][2]],
-                       scene=f"256 particles {w}x{w}, no sky, D = 128")
+                       scene=f"256 particles {w}x{w}, no sky, D = 128", scene_table=table)
 
 
 def drifting_cloud(positions, frame: int, spin: float = 0.02, wander: float = 0.02):
@@ -402,7 +404,8 @@ def animated(params: dict, device: str, quick: bool) -> dict:
     import numpy as np
 
     frames = 6 if quick else 48
-    scene = network_scene(quick, 1024, 128)
+    table = network_table(quick, 1024, 128)
+    scene = wv.load_scene(table)
     base = scene.media[0]
     runs = {}
     for k in sorted({0, params["refresh"]}):
@@ -427,4 +430,4 @@ def animated(params: dict, device: str, quick: bool) -> dict:
     return {"first_frame_ms": 0.0, "median_ms": float(np.median(ms)), "spread_ms": [min(ms), max(ms)],
             "frames": frames, "stages": {}, "network_ms": float(np.median(net)), "error_per_frame": err,
             "mean_error": float(np.mean(err[frames // 4:])), "final_error": err[-1],
-            "scene": "1024 particles, 128x128, turning 0.02 rad and wandering 0.02 a frame"}
+            "scene": "1024 particles, 128x128, turning 0.02 rad and wandering 0.02 a frame", "scene_table": table}
