@@ -192,23 +192,26 @@ def network_accuracy(params: dict, device: str, quick: bool) -> dict:
 def anisotropy_grid(quick: bool) -> list[dict]:
     if quick:
         return [{"g": g, "phase_norm": k, "directions": 32} for g in (0.0, 0.9) for k in (0, 1)]
-    return [{"g": g, "phase_norm": k, "directions": d} for g in (0.0, 0.6, 0.9) for k in (0, 1) for d in (64, 256)]
+    return ([{"g": g, "phase_norm": k, "directions": d} for g in (0.0, 0.6, 0.9) for k in (0, 1) for d in (64, 256)]
+            + [{"g": g, "phase_norm": 1, "directions": 128, "sky": 0} for g in (0.0, 0.6)])
 
 
 def anisotropy(params: dict, device: str, quick: bool) -> dict:
     """The network against the all-orders reference on the paper's cloud with forward-scattering
     particles (HG g), the phase matrix as tabulated (``phase_norm`` 0, the paper's) or scaled
     doubly stochastic (1, the default), at D directions: what the normalisation buys where the
-    lobe is narrow against the directions' spacing."""
+    lobe is narrow against the directions' spacing. ``sky`` 0: the suns alone (a black sky), the light
+    the sky's boundary radiance does not carry."""
     w = 24 if quick else 48
-    table = network_table(quick, 256 if quick else 1024, w, g=params["g"])
+    table = network_table(quick, 256 if quick else 1024, w, g=params["g"], sky=bool(params.get("sky", 1)))
     scene = wv.load_scene(table)
     r = wv.Renderer(scene, technique="illumination_network", device=device, iterations=2000, tolerance=1e-5,
                     directions=params["directions"], phase_norm=params["phase_norm"])
     row = time_frames(r, repeats=1 if quick else 2, invalidate=("lights",))
     ref = score(row, scene, device, 16 if quick else 128, max_bounces=-1)
     row["mean_ratio"] = float(row["frame"].image.mean() / ref.mean())
-    row["scene"] = f"{len(scene.media[0].positions)} particles, HG g = {params['g']}, {w}x{w}"
+    row["scene"] = (f"{len(scene.media[0].positions)} particles, HG g = {params['g']}, {w}x{w}"
+                    + (", no sky" if not params.get("sky", 1) else ""))
     row["scene_table"] = table
     return row
 
