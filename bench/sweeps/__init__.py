@@ -110,7 +110,7 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
     Sweep("illumination-network-anisotropy", "illumination_network against the multiple-scattering reference on "
           "forward-scattering particles (HG g = 0, 0.6, 0.9): the phase matrix as tabulated (phase_norm=0, the paper's) "
           "or scaled doubly stochastic (phase_norm=1, the default), D = 64 and 256, 1024 particles, 48x48; and under a "
-          "black sky (sky=0), the suns alone",
+          "black sky (sky=0), the suns alone, at the paper's window and at windows 8 and 4 (and these under the sky)",
           "illumination_network", "accuracy", illumination_network.anisotropy_grid, illumination_network.anisotropy),
     Sweep("illumination-network-accuracy", "illumination_network: converged image against the multiple-scattering "
           "reference vs ms per frame (lights moving), over N, D and the window M (given, the paper's rule, or from "

@@ -193,7 +193,8 @@ def anisotropy_grid(quick: bool) -> list[dict]:
     if quick:
         return [{"g": g, "phase_norm": k, "directions": 32} for g in (0.0, 0.9) for k in (0, 1)]
     return ([{"g": g, "phase_norm": k, "directions": d} for g in (0.0, 0.6, 0.9) for k in (0, 1) for d in (64, 256)]
-            + [{"g": g, "phase_norm": 1, "directions": 128, "sky": 0} for g in (0.0, 0.6)])
+            + [{"g": g, "phase_norm": 1, "directions": 128, "sky": 0} for g in (0.0, 0.6)]
+            + [{"g": 0.0, "phase_norm": 1, "directions": 128, "sky": s, "window": m} for s in (0, 1) for m in (8, 4)])
 
 
 def anisotropy(params: dict, device: str, quick: bool) -> dict:
@@ -206,8 +207,9 @@ def anisotropy(params: dict, device: str, quick: bool) -> dict:
     table = network_table(quick, 256 if quick else 1024, w, g=params["g"], sky=bool(params.get("sky", 1)))
     scene = wv.load_scene(table)
     r = wv.Renderer(scene, technique="illumination_network", device=device, iterations=2000, tolerance=1e-5,
-                    directions=params["directions"], phase_norm=params["phase_norm"])
+                    directions=params["directions"], phase_norm=params["phase_norm"], window=params.get("window", 0))
     row = time_frames(r, repeats=1 if quick else 2, invalidate=("lights",))
+    row["linked"] = float((r.technique.V.numpy() >= 0).mean())  # (particle, direction) pairs with an upstream particle
     ref = score(row, scene, device, 16 if quick else 128, max_bounces=-1)
     row["mean_ratio"] = float(row["frame"].image.mean() / ref.mean())
     row["scene"] = (f"{len(scene.media[0].positions)} particles, HG g = {params['g']}, {w}x{w}"
