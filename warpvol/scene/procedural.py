@@ -122,7 +122,7 @@ def fog_box():
 
 def hazy_sun():
     """Haze over a floor under a low sun behind it and a blue sky, a pillar casting a shaft that
-    the haze's forward scattering (g = 0.7) shows against the glow toward the sun: the first
+    the haze's forward scattering shows against the glow toward the sun: the first
     render (``python -m warpvol demo``), where single scattering is most of the light."""
     return {
         "name": "hazy-sun",
