@@ -22,9 +22,10 @@ import warpvol as wv
 from warpvol import device
 
 
-#: The kernel modules besides the techniques' (the lattice, the media's and the rasteriser's).
+#: The kernel modules besides the techniques' (the lattice, the media's, the rasteriser's and the tile lists';
+#: geometry.camera holds functions only, built into the modules that call them).
 SHARED = ("scattering", "shading", "media.grid", "media.lightpass", "media.volume", "geometry.raster",
-          "geometry.shadowmap")
+          "geometry.tiles", "geometry.shadowmap")
 
 
 def main(argv=None) -> int:

@@ -8,8 +8,9 @@ import pytest
 import warp as wp
 
 from warpvol.geometry.mesh import Surfaces
-from warpvol.geometry.raster import (KEY_RANGE, NO_HIT, SPHERE_TILE, RasterView, bin_spheres, rasterise_visible,
-                                     split_long_edges)
+from warpvol.geometry.camera import RasterView
+from warpvol.geometry.raster import KEY_RANGE, NO_HIT, rasterise_visible, split_long_edges
+from warpvol.geometry.tiles import SPHERE_TILE, bin_spheres
 from warpvol.geometry.shadowmap import CUBE, ORTHOGRAPHIC, PERSPECTIVE, ShadowMap, shadow_map_depths, texels
 
 # a unit box's six faces (12 triangles) centred at (0, 0, -3)

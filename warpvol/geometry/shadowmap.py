@@ -27,7 +27,8 @@ from .. import device as dev
 from ..physics.constants import INF
 from ..physics.lights import Emitter
 from .mesh import Surfaces
-from .raster import RasterView, owner, pixel_ray, rasterise, view_ray
+from .camera import RasterView, pixel_ray, view_ray
+from .raster import owner, rasterise
 
 dev.kernel_module(__name__)
 

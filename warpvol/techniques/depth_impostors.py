@@ -68,10 +68,10 @@ import numpy as np
 import warp as wp
 
 from .. import device as dev
-from ..geometry.camera import camera_view
+from ..geometry.camera import RasterView, camera_view, pixel_ray
 from ..geometry.intersect import ray_sphere
 from ..geometry.mesh import Surfaces, occluded, surface_hit
-from ..geometry.raster import SPHERE_TILE, RasterView, TileLists, bin_spheres, pixel_ray, pixel_tile
+from ..geometry.tiles import SPHERE_TILE, TileLists, bin_spheres, pixel_tile
 from ..media.lightpass import REPRESENTATIONS, LightMap, LightPass, optical_depth_to_light
 from ..media.particles import BlockCloud, Blocks, ParticleBuffers, Particles
 from ..physics.constants import INF, RAY_EPS

@@ -90,9 +90,9 @@ import numpy as np
 import warp as wp
 
 from .. import device as dev
-from ..geometry.camera import camera_view
+from ..geometry.camera import RasterView, camera_view, pixel_ray
 from ..geometry.intersect import ray_sphere, sphere_chord
-from ..geometry.raster import RasterView, TileLists, bin_spheres, pixel_ray, pixel_tile
+from ..geometry.tiles import TileLists, bin_spheres, pixel_tile
 from ..media.lightpass import REPRESENTATIONS, LightPass
 from ..media.particles import ParticleBuffers, Particles, particle_sigma_t
 from ..physics.constants import INV_4PI, PI

@@ -85,19 +85,10 @@ import numpy as np
 import warp as wp
 
 from .. import device as dev
-from ..geometry.camera import camera_view
+from ..geometry.camera import RasterView, camera_view, pixel_ray, view_ray
 from ..geometry.intersect import ray_box
 from ..geometry.mesh import Surfaces, surface_hit
-from ..geometry.raster import (
-    NO_HIT,
-    RasterView,
-    key_hit,
-    pixel_ray,
-    rasterise_visible,
-    split_long_edges,
-    triangle_at,
-    view_ray,
-)
+from ..geometry.raster import NO_HIT, key_hit, rasterise_visible, split_long_edges, triangle_at
 from ..geometry.shadowmap import (
     ShadowedLights,
     ShadowMap,

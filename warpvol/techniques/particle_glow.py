@@ -66,10 +66,9 @@ import numpy as np
 import warp as wp
 
 from .. import device as dev
-from ..geometry.camera import camera_view
+from ..geometry.camera import RasterView, camera_view, pixel_ray
 from ..geometry.intersect import ray_box
 from ..geometry.mesh import Surfaces
-from ..geometry.raster import RasterView, pixel_ray
 from ..geometry.shadowmap import ShadowedLights, shadow_visibility
 from ..media.volume import Media, coefficients_at
 from ..physics.airlight import g_table, surface_radiance

@@ -51,10 +51,9 @@ from __future__ import annotations
 import warp as wp
 
 from .. import device as dev
-from ..geometry.camera import camera_view
+from ..geometry.camera import RasterView, camera_view, view_ray
 from ..geometry.intersect import inside_box
 from ..geometry.mesh import Surfaces, occluded
-from ..geometry.raster import RasterView, view_ray
 from ..media.volume import Media, coefficients_at, in_scatter_at, in_scatter_from, scattering_at
 from ..physics.constants import INF, RAY_EPS
 from ..physics.lights import (Emitter, angle_point, angle_samples, angle_share, light_incident, step_angle,

@@ -74,10 +74,9 @@ import numpy as np
 import warp as wp
 
 from .. import device as dev
-from ..geometry.camera import camera_view
+from ..geometry.camera import RasterView, camera_view, pixel_ray
 from ..geometry.intersect import inside_box, ray_box
 from ..geometry.mesh import Surfaces, surface_hit
-from ..geometry.raster import RasterView, pixel_ray
 from ..media.grid import grid_corners, trilinear_blend
 from ..media.rbf import CUTOFF
 from ..media.volume import sample_extinction

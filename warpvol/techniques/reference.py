@@ -43,9 +43,8 @@ import warp as wp
 from tqdm import tqdm
 
 from .. import device as dev
-from ..geometry.camera import camera_view
+from ..geometry.camera import RasterView, camera_view, view_ray_at
 from ..geometry.mesh import Surfaces, surface_hit
-from ..geometry.raster import RasterView, view_ray_at
 from ..media.volume import (Media, depths_and_extinction, exact_media, free_flight, in_scatter_at, media_span,
                             transmittance_estimate)
 from ..physics.brdf import brdf_eval
