@@ -44,6 +44,18 @@ def _scene_source(row: dict):
     return str(path) if name and path.exists() else None
 
 
+#: The largest scene table a probe keeps (JSON characters): a generated cloud's generator, not a grid's samples.
+TABLE_LIMIT = 20000
+
+
+def _keepable(table: dict) -> bool:
+    """Whether a scene table can be kept with a row: plain JSON (no arrays) of at most TABLE_LIMIT characters."""
+    try:
+        return len(json.dumps(table)) <= TABLE_LIMIT
+    except TypeError:
+        return False
+
+
 def probe_spec(row: dict) -> dict | None:
     """What a row's probe renders: scene, technique and settings; None where the row names no
     scene a probe can load, or no technique."""
@@ -73,6 +85,8 @@ def probe_image(spec: dict) -> list[float]:
 def probe(row: dict, scene_table: dict | None = None) -> dict | None:
     """The probe to store with a freshly measured row (None where it has none or it fails);
     ``scene_table``: the table the row's scene was built from, where it names no file."""
+    if scene_table is not None and not _keepable(scene_table):
+        return None
     spec = probe_spec({**row, "scene_table": scene_table} if scene_table is not None else row)
     if spec is None:
         return None

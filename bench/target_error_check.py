@@ -18,23 +18,31 @@ import numpy as np
 import warp as wp
 
 import warpvol as wv
+from warpvol.scattering import BIASES as MS_BIASES
 from warpvol.scene.procedural import brightened, random_cloud, random_scene
 
+from .fingerprint import probe
 from .harness import device_name, git_commit
 
 # technique: (target, scenes, the truth's settings (or a function of the frame giving them): every
 # discretisation setting at its limit, what the truth is)
+#: The multiple-scattering lattice in a marcher's truth: at the top target_error takes it to (its cost
+#: grows as n^4 D), where the frame may have moved it; its bias beyond is the frame's own estimate's part.
+LATTICE = {b.setting: b.top for b in MS_BIASES}
 CASES = {
-    "raymarch": (0.01, "random_scene", [{"steps": 1024, "shadow_steps": 1024, "sky_samples": 1024}],
-                 "1024 steps and shadow steps, 1024 sky directions"),
-    "light_shafts": (0.02, "random_scene", [{"steps": 8192, "block": 1, "shadow_steps": 1024, "shadow_map_res": 2048}],
-                     "8192 steps, block 1, 2048-texel shadow maps"),
-    "particle_glow": (0.01, "random_scene", [{"steps": 4096, "shadow_steps": 1024, "shadow_map_res": 2048}],
-                      "4096 steps, 2048-texel shadow maps"),
-    "rbf_propagation": (0.05, "random_scene", [{"grid": 256, "steps": 1024}], "grid 256, 1024 steps"),
+    "raymarch": (0.01, "random_scene", [{"steps": 1024, "shadow_steps": 1024, "sky_samples": 1024, **LATTICE}],
+                 "1024 steps and shadow steps, 1024 sky directions, the lattice at its top"),
+    "light_shafts": (0.02, "random_scene", [{"steps": 8192, "block": 1, "shadow_steps": 1024, "shadow_map_res": 2048,
+                                             **LATTICE}],
+                     "8192 steps, block 1, 2048-texel shadow maps, the lattice at its top"),
+    "particle_glow": (0.01, "random_scene", [{"steps": 4096, "shadow_steps": 1024, "shadow_map_res": 2048, **LATTICE}],
+                      "4096 steps, 2048-texel shadow maps, the lattice at its top"),
+    "rbf_propagation": (0.05, "random_scene", [{"grid": 256, "steps": 1024, **LATTICE}],
+                        "grid 256, 1024 steps, the lattice at its top"),
     "depth_impostors": (0.02, "random_cloud", [{"light_pass": 0, "impostor_res": 128, "light_samples": 1024,
-                                                "sky_samples": 256}],
-                        "exact light pass (the sky's too), 128-texel impostors, 1024 light samples, 256 sky directions"),
+                                                "sky_samples": 256, **LATTICE}],
+                        "exact light pass (the sky's too), 128-texel impostors, 1024 light samples, 256 sky "
+                        "directions, the lattice at its top"),
     "illumination_network": (0.03, "random_cloud", [{"directions": 4096, "direction_seed": k, "window_at": 128,
                                                      "light_pass": 0, "light_samples": 1024} for k in (3, 4)],
                              "two turned sets of 4096 directions (the window held at D = 128's), exact light pass, "
@@ -163,7 +171,11 @@ def main(argv=None) -> None:
                          "mean_radiance": float(np.mean(truth_image)), "target": target,
                          "estimate": frame.error_estimate, "biases": frame.bias_estimates, "truth": truth, "truth_noise": noise,
                          "truth_is": truth_is, "knob": {knob: frame.settings[knob]}, "moved": frame.moved_to_limit,
-                         "seconds": seconds, "command": command_of(args, ap)})
+                         "seconds": seconds, "command": command_of(args, ap),
+                         # what bench report --stale renders again: the scene's table at the settings found
+                         "probe": probe({"technique": technique,
+                                         "params": {"technique": technique, knob: frame.settings[knob],
+                                                    **frame.moved_to_limit}}, scene)})
             print(f"{technique} {kind}({seed}): estimate {frame.error_estimate:.3g} truth {truth:.3g} "
                   f"{rows[-1]['knob']} {seconds:.1f} s", flush=True)
         write(args, ap, out, path, rows)  # after each scene: a stopped run keeps what it measured
