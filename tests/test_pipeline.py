@@ -205,3 +205,25 @@ def test_every_stage_declares_the_settings_it_reads(technique):
         r._pipeline.audit = True
         r.render()
         assert r._pipeline.undeclared == {}, f"{technique} on {name}"
+
+
+@pytest.mark.parametrize("technique", ["raymarch", "particle_glow", "light_shafts", "rbf_propagation"])
+def test_a_march_fills_the_cores_when_its_pixels_are_few(monkeypatch, technique):
+    """A march's launch is split over the CPU cores by its work, pixels times steps, not by its
+    pixels alone: 24 x 18 pixels of 128 steps are more work than device.MIN_SPLIT simple threads,
+    so the march stage runs in chunks on both cores (at 160x120 it once ran on one). light_shafts
+    without interleaving (block 1): with M x M blocks a pixel takes 1 / M^2 of the samples."""
+    from warpvol import device as dev
+
+    monkeypatch.setenv("WARPVOL_THREADS", "2")
+    split = []
+    real = dev._run_chunks
+    monkeypatch.setattr(dev, "_run_chunks", lambda kernel, *a: (split.append(kernel.key), real(kernel, *a))[1])
+    scene = wv.load_scene("dusty-lamp", ["camera.width=24", "camera.height=18"])
+    assert 24 * 18 < dev.MIN_SPLIT <= 24 * 18 * 128
+    extra = {"block": 1} if technique == "light_shafts" else {}
+    r = wv.Renderer(scene, technique=technique, device="cpu", steps=128, multiple_scattering=0, **extra)
+    r.render()
+    split.clear()
+    r.run_stage("march")
+    assert split, f"{technique}: the march ran on one core"
