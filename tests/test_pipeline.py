@@ -227,3 +227,19 @@ def test_a_march_fills_the_cores_when_its_pixels_are_few(monkeypatch, technique)
     split.clear()
     r.run_stage("march")
     assert split, f"{technique}: the march ran on one core"
+
+
+def test_a_large_private_copy_is_not_kept():
+    """A core's private copy of a launch's output is kept between launches up to SCRATCH_KEEP bytes
+    (a small map re-used), and made afresh above it (a big map is not held for the process's life)."""
+    import warp as wp
+
+    from warpvol import device as dev
+
+    small = wp.full(1000, 2.0, dtype=float, device="cpu")
+    big = wp.full(dev.SCRATCH_KEEP // 4 + 1, 3.0, dtype=float, device="cpu")
+    a = dev._scratch(small, 1)
+    b = dev._scratch(big, 1)
+    assert np.all(a.numpy() == 2.0) and np.all(b.numpy() == 3.0)
+    assert (str(small.device), small.dtype, 1) in dev._scratch_pool  # the small one kept
+    assert all(v.capacity <= dev.SCRATCH_KEEP for v in dev._scratch_pool.values())  # the big one not

@@ -172,10 +172,17 @@ def launch(kernel, dim: int, inputs: list, device: str, split: bool = True, min_
 
 _scratch_pool: dict = {}
 
+#: The largest per-core copy kept between launches, in bytes: a larger one (a big light map) is made
+#: for its launch and freed after, so the pool does not hold it for the life of the process.
+SCRATCH_KEEP = 32 << 20
+
 
 def _scratch(out, k: int):
     """Core k's private copy of ``out``: a view of a buffer kept between launches (a fresh
-    allocation of tens of MB costs more in page faults than the launch itself), set to ``out``."""
+    allocation of a few MB costs more in page faults than the launch itself), set to ``out``;
+    above SCRATCH_KEEP bytes a copy of its own, not kept."""
+    if out.capacity > SCRATCH_KEEP:
+        return wp.clone(out)
     key = (str(out.device), out.dtype, k)
     buf = _scratch_pool.get(key)
     if buf is None or buf.shape[0] < out.shape[0]:
