@@ -32,7 +32,7 @@ def settings_table(name: str) -> str:
     cls = technique_class(name)
     lines = ["| setting | default | range | meaning |", "|---|---|---|---|"]
     for key, s in cls.SETTINGS.items():
-        span = ", ".join(f"{int(s.lo) + i} `{n}`" for i, n in enumerate(s.names)) if s.names else \
+        span = ", ".join(f"{v} `{n}`" for n, v in s.choices().items()) if s.names else \
             f"{_number(s.lo)} .. {_number(s.hi)}"
         lines.append(f"| `{key}` | {_number(s.default)} | {span} | "
                      f"{s.doc.replace('|', '&#124;')} |")

@@ -53,10 +53,14 @@ class Setting:
         if self.names and len(self.names) != int(self.hi - self.lo) + 1:
             raise ValueError(f"Setting names {self.names}: one for each value {self.lo:g}..{self.hi:g}")
 
+    def choices(self) -> dict[str, int]:
+        """A choice's names and the values they stand for (empty for a plain number)."""
+        return {n: int(self.lo) + i for i, n in enumerate(self.names)}
+
     def allowed(self) -> str:
         """The values it takes, for messages: the range, or each value with its name."""
         if self.names:
-            return ", ".join(f"{int(self.lo) + i} or {n!r}" for i, n in enumerate(self.names))
+            return ", ".join(f"{v} or {n!r}" for n, v in self.choices().items())
         return f"{self.lo:.10g}..{self.hi:.10g}"
 
 
@@ -74,7 +78,7 @@ def resolve_settings(technique: str, spec: dict[str, Setting], given: dict, base
             if value not in s.names:
                 raise SettingsError(f"{technique}: setting {key}={value!r} is not one of its names{did_you_mean(value, s.names)} "
                                     f"({allowed})")
-            value = int(s.lo) + s.names.index(value)
+            value = s.choices()[value]
         if isinstance(value, float) and not np.isfinite(value):
             raise SettingsError(f"{technique}: setting {key}={value!r} is not finite ({allowed})")
         if isinstance(value, bool) or not isinstance(value, (int, float)) or (kind is int and int(value) != value):
@@ -199,6 +203,12 @@ class Technique:
         if has_sky(self.scene) and not self.gathers_sky and not self.settings.get("multiple_scattering", 0):
             out.append("the sky's light (the background) scattered in the media or reflected by surfaces")
         return out
+
+    def pixel_work(self, light_samples: float, steps: float = 0.0) -> float:
+        """A pixel's work in units of a simple pixel (``device.launch`` splits a CPU launch by it):
+        ``light_samples`` for each of the scene's lights (one where it has none), and ``steps``
+        density samples of its own."""
+        return light_samples * max(1, len(self.scene.lights)) + steps
 
     #: True: the technique gathers the sky's light whatever its settings (e.g. by following paths).
     GATHERS_SKY: bool = False

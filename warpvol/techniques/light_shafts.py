@@ -601,7 +601,7 @@ class LightShafts(Technique):
                                                  self._shadowed_lights(), vis, self.settings["shadow_steps"],
                                                  self.settings["steps"], wp.vec3(*scene.background),
                                                  self.multiple.struct(), self.radiance],
-                   self.device, work=self._pixel_work(1.0))
+                   self.device, work=self.pixel_work(1.0, self._view_samples()))
 
     def _march(self):
         scene, u, cfg = self.scene, self.uploads, self.settings
@@ -625,16 +625,15 @@ class LightShafts(Technique):
         dev.launch(march_shafts, npix, [camera_view(pinhole(cam)), u.media.struct, self._shadowed_lights(), self.segs,
                                         wp.vec3(*scene.background), st, self.multiple.struct(), self.surface,
                                         self.partial, self.own], self.device,
-                   work=self._pixel_work(st.steps / st.block**2))
+                   work=self.pixel_work(st.steps / st.block**2, self._view_samples()))
         if st.block == 1 or not cfg["scattering"] or not scene.media:
             self.image = wp.empty(npix, dtype=wp.vec3, device=self.device)  # the frame's own: not reused
             dev.launch(add_images, npix, [self.surface, self.partial, self.own, self.image], self.device)
 
-    def _pixel_work(self, per_light: float) -> float:
-        """A pixel's work in units of a simple pixel (``device.launch``): ``per_light`` light samples
-        for each light, and in heterogeneous media a density sample at every step of the view ray."""
-        hetero = any(m.type != "homogeneous" for m in self.scene.media)
-        return per_light * max(1, len(self.scene.lights)) + (self.settings["steps"] if hetero else 0)
+    def _view_samples(self) -> int:
+        """Density samples along a pixel's view ray: one a step in heterogeneous media (their
+        optical depth is marched), none where every medium has a closed form."""
+        return self.settings["steps"] if any(m.type != "homogeneous" for m in self.scene.media) else 0
 
     def _block_rows(self):
         cam = self.scene.camera

@@ -356,7 +356,7 @@ class ParticleGlow(Technique):
         sl = self.light_volume.attach(self.sl)
         dev.launch(march_glow, npix, [camera_view(pinhole(scene.camera)), u.media.struct, u.surfaces, sl,
                                       self.glow_struct(), wp.vec3(*scene.background), self.multiple.struct(),
-                                      self.image], self.device, work=self.settings["steps"] * max(1, len(scene.lights)))
+                                      self.image], self.device, work=self.pixel_work(self.settings["steps"]))
 
     def diagnostics(self) -> dict:
         """``density``: the particle-density texture d (texels), as sampled by the march; with

@@ -203,9 +203,11 @@ def march_single_scattering(offset: int, cam: RasterView, m: Media, s: Surfaces,
                             else:
                                 e = angle_share(lights[l], e, dist, h, phi, na, dt)
                             tl = light_at(m, s, l, xj, wi, dist, st, baked, st.shadow_steps)
-                            ph = in_scatter_from(m, x, sig_s, wp.dot(d, wi))
-                            if na > 1:
+                            ph = wp.vec3(0.0)
+                            if na > 1:  # an equiangular point: its own lookup
                                 ph = in_scatter_at(m, xj, wp.dot(d, wi))
+                            else:  # the step's midpoint, looked up already
+                                ph = in_scatter_from(m, x, sig_s, wp.dot(d, wi))
                             inscatter += wp.cw_mul(wp.cw_mul(ph, e), tl)
                 if sky.directions.shape[0] > 0 and ms.lat.n == 0:  # else the lattice carries the sky
                     inscatter += sky_in_scatter(m, s, sky, x, d, st, baked)
@@ -316,7 +318,7 @@ class Raymarch(Technique):
         dev.launch(march_single_scattering, npix, [camera_view(pinhole(scene.camera)), u.media.struct, u.surfaces,
                                                    u.lights, sky, self._march_settings(), self.baked,
                                                    self.multiple.struct(), self.image],
-                   self.device, work=self.settings["steps"] * max(1, len(scene.lights)))
+                   self.device, work=self.pixel_work(self.settings["steps"]))
 
     def output(self):
         return self.image
