@@ -370,3 +370,27 @@ def test_a_camera_inside_fog_grades_only_what_even_cells_cannot_resolve():
     assert not np.any(alpha(box))
     assert np.all(alpha(thick) > 0.0)
     assert not np.any(alpha(outside))
+
+
+def test_a_floor_past_the_lattice_reads_its_field_at_every_size(device):
+    """A floor 0.1 below a lit box of fog, outside the lattice: it reads the field where each
+    direction enters the box (``reflected_from_outside``), so its light does not jump as a cell's
+    width passes 0.1 (between 20 and 22 nodes). As a first-order error the lattice's part goes
+    as 1/n: 20 -> 22 moves the image (1/20 - 1/22) / (1/11 - 1/22) = 0.1 of what 11 -> 22 moves
+    it; 0.3 is asked (noise-free, so the slack is for the error's higher orders). Read within a
+    cell and not beyond (the old rule), the floor lost the fog's light at 22 and the ratio was
+    near 1."""
+    scene = wv.load_scene({
+        "camera": {"origin": [0.0, 0.6, 3.4], "target": [0, -0.6, 0], "fov_y": 50, "width": 16, "height": 12},
+        "background": [0.0, 0.0, 0.0],
+        "lights": [{"type": "directional", "direction": [0.2, -1.0, -0.3], "irradiance": 3.0}],
+        "media": [{"type": "homogeneous", "shape": "box", "center": [0, 0, 0], "size": [2, 2, 2], "sigma_t": 1.5,
+                   "albedo": 0.9}],
+        "surfaces": [{"type": "plane", "center": [0, -1.1, 0], "normal": [0, 1, 0], "size": [6, 6], "diffuse": 0.8}],
+    })
+    img = {n: wv.render(scene, technique="raymarch", device=device, multiple_scattering=n, ms_directions=16).image
+           for n in (11, 20, 22)}
+    near = float(np.abs(img[20] - img[22]).mean())
+    far = float(np.abs(img[11] - img[22]).mean())
+    assert far > 0.0
+    assert near < 0.3 * far, (near, far)

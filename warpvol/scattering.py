@@ -42,8 +42,10 @@ the surface reflects, of the lights' direct light and of the sky in order 0 and 
 lattice's field L_{k-1} in order k (``reflect_at_ends``), so light goes from the media to a
 wall and back, and from wall to wall; a march's visible surface reflects the field too
 (``scattered_on_surface``). A surface outside the lattice (a floor beyond the fog) reflects
-the lights and the sky (seen along its normal, ``shading.sky_along_normal``) once, not the
-field. Everything converges to the all-orders answer as
+the sky where a direction misses the lattice's box and the field where it meets it, read
+where the direction enters the box (``reflected_from_outside``), in the iteration and in the
+image alike; its lights' and sky's light in order 0 (the sky seen along its normal,
+``shading.sky_along_normal``). Everything converges to the all-orders answer as
 the nodes and directions rise (error ~ 1/n, 1/D), up to the light leaking through surfaces
 thinner than a cell, whose two sides share nodes.
 
@@ -150,9 +152,7 @@ class ScatteredLight:
     lat: Lattice
     values: wp.array(dtype=wp.vec3)
     field: wp.array(dtype=wp.vec3)  # L_{>=1}(x, w_d), n^3 x D, for surfaces
-    m: Media  # for the sky's light on surfaces beyond the field
     sky: wp.vec3  # the sky's radiance where the technique does not light surfaces with it itself, else 0
-    steps: int  # the shadow rays' midpoints
 
 
 @wp.func
@@ -241,6 +241,13 @@ def inside_margin(lo: wp.vec3, hi: wp.vec3, margin: float, p: wp.vec3) -> bool:
 
 
 @wp.func
+def in_lattice(lat: Lattice, p: wp.vec3) -> bool:
+    """Whether p lies within the lattice's bounds, padded by a thousandth of a cell (a surface
+    on a bound is inside)."""
+    return inside_margin(lat.lo, lat.hi, 1.0e-3 * wp.max(cell_size(lat, p)), p)
+
+
+@wp.func
 def corner_weight(lat: Lattice, q: int, w: float, p: wp.vec3, n: wp.vec3) -> float:
     """A trilinear weight w of node q, or 0 where the node lies behind the plane through p
     with normal n."""
@@ -287,27 +294,49 @@ def reflected_field(field: wp.array(dtype=wp.vec3), lat: Lattice, mat: Material,
 
 @wp.func
 def field_reaches(sl: ScatteredLight, p: wp.vec3) -> bool:
-    """Whether the lattice's field covers a surface at p: the term is on and p lies within a
-    cell of the lattice's bounds."""
+    """Whether a surface at p lies within the lattice, where the field is read at p itself; the
+    term on."""
     if sl.lat.n == 0:
         return False
-    return inside_margin(sl.lat.lo, sl.lat.hi, wp.max(cell_size(sl.lat, p)), p)
+    return in_lattice(sl.lat, p)
+
+
+@wp.func
+def reflected_from_outside(field: wp.array(dtype=wp.vec3), lat: Lattice, mat: Material, p: wp.vec3, n: wp.vec3,
+                           wo: wp.vec3, sky: wp.vec3) -> wp.vec3:
+    """What a surface at p outside the lattice reflects toward wo of a sky of radiance ``sky``
+    where a direction misses the lattice's box and of the field where it meets it, read where
+    the direction enters the box (no medium lies outside it, so the radiance leaving the box
+    along -w_d arrives unchanged; surfaces between are not tested). Written as the sky's exact
+    Lambertian rho L plus, over the directions that meet the box, f cos (L(e, w_d) - L_sky)
+    4 pi / D: far from the media the sky alone, and as the surface nears the box the field,
+    continuously (a floor just past a cloud lit by it, at every lattice size)."""
+    D = lat.directions.shape[0]
+    dw = 4.0 * PI / float(D)
+    out = wp.cw_mul(mat.diffuse, sky)
+    for d in range(D):
+        wi = -lat.directions[d]
+        c = wp.dot(n, wi)
+        if c > 0.0:
+            a, b = ray_box(p, wi, lat.lo, lat.hi)
+            if a <= b and b > 0.0:
+                L = lattice_sample(field, d, D, lat, p + wp.max(a, 0.0) * wi)
+                out += reflected(mat, n, wo, wi, c, (L - sky) * dw, wp.vec3(1.0))
+    return out
 
 
 @wp.func
 def scattered_on_surface(sl: ScatteredLight, s: Surfaces, mat: Material, p: wp.vec3, n: wp.vec3,
                          wo: wp.vec3) -> wp.vec3:
     """What a surface at p (normal n facing wo) reflects toward wo of the light the media have
-    scattered and the surfaces have reflected (``reflected_field`` of L_{>=1}); where the field
-    does not reach (``field_reaches``: a floor beyond the fog), the sky's light (``sky_along_normal``)
-    unless the technique gathers it there itself; zero without the term."""
+    scattered and the surfaces have reflected (``reflected_field`` of L_{>=1}) within the
+    lattice, and, outside it, of the light leaving the lattice toward p and of the sky unless the
+    technique gathers it there itself (``reflected_from_outside``); zero without the term."""
     if sl.lat.n == 0:
         return wp.vec3(0.0)
     if field_reaches(sl, p):
         return reflected_field(sl.field, sl.lat, mat, p, n, wo)
-    if wp.max(sl.sky) > 0.0:
-        return sky_along_normal(sl.m, s, mat, p, n, sl.sky, sl.steps)
-    return wp.vec3(0.0)
+    return reflected_from_outside(sl.field, sl.lat, mat, p, n, wo, sl.sky)
 
 
 @wp.kernel
@@ -347,8 +376,8 @@ def phase_matrix(offset: int, m: Media, directions: wp.array(dtype=wp.vec3), out
 class Ends:
     """Where each characteristic (direction d, node q; q fastest) ends: its length, the point and
     the normal (facing the node) of the surface there, the surface's face (-1: none, the
-    lattice's boundary; -2: a surface outside the lattice, whose light is taken once, not
-    iterated) and the radiance arriving from there before any scattering (``start``)."""
+    lattice's boundary; -2 - face: a surface outside the lattice, its field read where each
+    direction enters the lattice) and the radiance arriving from there before any scattering (``start``)."""
 
     length: wp.array(dtype=float)
     point: wp.array(dtype=wp.vec3)
@@ -362,8 +391,8 @@ def characteristics(offset: int, m: Media, s: Surfaces, lights: wp.array(dtype=E
                     sky: wp.vec3, shadow_steps: int, ends: Ends):
     """How far back along w_d node q sees, to the lattice's boundary or the first surface, and
     the radiance arriving from there before any scattering in the media: the sky, or what the
-    surface reflects toward w_d of the lights' direct light (and, outside the lattice, where the
-    iteration cannot reach it, of the sky: Lambertian, its visibility taken along the normal)."""
+    surface reflects toward w_d of the lights' direct light (and, outside the lattice, whose
+    field holds no sky, of the sky: Lambertian, its visibility taken along the normal)."""
     tid = wp.tid() + offset
     n3 = lat.n * lat.n * lat.n
     q = tid % n3
@@ -385,8 +414,8 @@ def characteristics(offset: int, m: Media, s: Surfaces, lights: wp.array(dtype=E
         ends.point[tid] = p
         ends.normal[tid] = nf
         ends.face[tid] = face
-        if not inside_margin(lat.lo, lat.hi, wp.min(cell_size(lat, p)), p):
-            ends.face[tid] = -2
+        if not in_lattice(lat, p):
+            ends.face[tid] = -2 - face
             if wp.max(sky) > 0.0:
                 start += sky_along_normal(m, s, mat, p, nf, sky, shadow_steps)
     ends.length[tid] = t
@@ -405,8 +434,8 @@ def surface_starts(offset: int, ends: Ends):
 def reflect_at_ends(offset: int, s: Surfaces, lat: Lattice, ends: Ends, L: wp.array(dtype=wp.vec3),
                     out: wp.array(dtype=wp.vec3)):
     """The radiance a characteristic starts with in the next order: what the surface at its end
-    reflects toward w_d of the field L (``reflected_field``); zero where it ends on no surface
-    or outside the lattice."""
+    reflects toward w_d of the field L (``reflected_field``; outside the lattice,
+    ``reflected_from_outside``, its sky already in the start); zero where it ends on no surface."""
     tid = wp.tid() + offset
     n3 = lat.n * lat.n * lat.n
     face = ends.face[tid]
@@ -414,6 +443,9 @@ def reflect_at_ends(offset: int, s: Surfaces, lat: Lattice, ends: Ends, L: wp.ar
     if face >= 0:
         out[tid] = reflected_field(L, lat, s.material[face], ends.point[tid], ends.normal[tid],
                                    lat.directions[tid / n3])
+    elif face <= -2:
+        out[tid] = reflected_from_outside(L, lat, s.material[-2 - face], ends.point[tid], ends.normal[tid],
+                                          lat.directions[tid / n3], wp.vec3(0.0))
 
 
 @wp.func
@@ -955,7 +987,7 @@ class MultipleScattering:
         ends.start = wp.empty(size, dtype=wp.vec3, device=device)
         dev.launch(characteristics, size, [m, surfaces, lights, lat, wp.vec3(*scene.background), shadow_steps, ends],
                    device, work=4.0 + lights.shape[0])
-        reflects = bool(scene.surfaces) and bool(np.any(ends.face.numpy() >= 0))
+        reflects = bool(scene.surfaces) and bool(np.any(ends.face.numpy() != -1))
         source = wp.empty(size, dtype=wp.vec3, device=device)
         dev.launch(light_source, n3, [m, surfaces, lights, lat, sigma_t, self.sigma_s, M, shadow_steps, source],
                    device, work=max(1, lights.shape[0]) * (4.0 * lat.n + D))
@@ -1024,7 +1056,6 @@ class MultipleScattering:
         sl = ScatteredLight()
         if self.n > 0 and self.view is not None:
             sl.lat, sl.values, sl.field = self.lattice, self.view, self.L
-            sl.m, sl.steps = self._m, self.shadow_steps
             # the sky on surfaces beyond the field, unless the technique gathers the sky itself
             sl.sky = wp.vec3(0.0) if self.t.gathers_sky else wp.vec3(*self.t.scene.background)
         else:
