@@ -159,6 +159,19 @@ def test_without_glow_it_is_the_single_scattering_march(device):
     assert glowing.mean() > 1.05 * base.mean()  # the glow adds light
 
 
+def test_two_glowing_particles_average_their_light(device):
+    """glow = "two" (section 5's first and second nearest) averages the two particles' light:
+    the glow it adds is of the size one particle adds (its second particle, 4/3 as far, a little
+    dimmer), not twice it as a sum would be; the choice is taken by name; and the image is not
+    the one-particle image."""
+    scene = glow_scene()
+    r = {g: wv.Renderer(scene, "particle_glow", multiple_scattering=0, device=device, glow=g).render().image
+         for g in ("off", "nearest", "two")}
+    one, two = (float(r[g].mean() - r["off"].mean()) for g in ("nearest", "two"))
+    assert one > 0.0 and 0.5 * one < two < 1.5 * one, (one, two)
+    assert wv.relative_rmse(r["two"], r["nearest"]) > 1e-3
+
+
 def test_the_grain_is_fixed_in_the_world(device):
     """The textures tile space with period texture_res x cell: moving the whole scene (camera,
     light, medium) by one period leaves the image as it was (up to float32 rounding of the

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 
 import numpy as np
@@ -99,6 +100,46 @@ def sparse_cloud_density(n: int = 128, seed: int = 5, out: np.ndarray | None = N
 #: The built-in NanoVDB cloud: ``sparse_cloud_density()`` over [-1, 1]^3 written by
 #: ``warpvol.save_volume(NANOVDB_CLOUD, sparse_cloud_density(), (-1, -1, -1), (1, 1, 1), codec="zip")``
 #: (tests/test_nanovdb.py checks that it still holds exactly those samples).
+def _normal_cdf(z: np.ndarray) -> np.ndarray:
+    return 0.5 * (1.0 + np.vectorize(math.erf)(z / math.sqrt(2.0)))
+
+
+def density_texture(res: int, mu: float, sigma: float, x_max: float, lognormal: bool, seed: int) -> np.ndarray:
+    """res^3 cell densities d = CDF(x | mu, sigma), x uniform in (0, x_max] per cell (float32)."""
+    x = (1.0 - np.random.default_rng(seed).random(res**3)) * x_max  # (0, x_max]
+    z = (np.log(x) - mu) / sigma if lognormal else (x - mu) / sigma
+    return _normal_cdf(z).astype(np.float32)
+
+
+def direction_texture(res: int, seed: int) -> np.ndarray:
+    """res^3 unit vectors, uniformly distributed over the sphere (float32)."""
+    u = np.random.default_rng(seed).random((res**3, 2))
+    z = 1.0 - 2.0 * u[:, 0]
+    r = np.sqrt(np.maximum(1.0 - z * z, 0.0))
+    phi = 2.0 * np.pi * u[:, 1]
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1).astype(np.float32)
+
+
+def glow_particles(density: np.ndarray, cell: float, lo, hi, per_cell: float, seed: int) -> np.ndarray:
+    """Explicit particles drawn from particle_glow's density texture (``density_texture``, res^3
+    cells of side ``cell`` tiling space from the origin, as the technique reads it): in each cell
+    of the box [lo, hi] a Poisson number of mean ``per_cell`` d, placed uniformly in the cell (and
+    the box). The medium the glow imitates: where d is high the particles crowd, where it is low
+    they thin out."""
+    res = round(len(density) ** (1.0 / 3.0))
+    lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+    first, last = np.floor(lo / cell).astype(int), np.ceil(hi / cell).astype(int)
+    idx = np.stack(np.meshgrid(*(np.arange(f, l) for f, l in zip(first, last)), indexing="ij"), -1).reshape(-1, 3)
+    wrapped = idx % res
+    d = density[(wrapped[:, 2] * res + wrapped[:, 1]) * res + wrapped[:, 0]].astype(np.float64)
+    rng = np.random.default_rng(seed)
+    count = rng.poisson(per_cell * d)
+    corner = np.repeat(idx * cell, count, axis=0)
+    points = corner + rng.random((len(corner), 3)) * cell
+    keep = np.all((points >= lo) & (points <= hi), axis=1)
+    return points[keep]
+
+
 NANOVDB_CLOUD = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "nanovdb-cloud.nvdb")
 
 

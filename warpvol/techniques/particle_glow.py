@@ -25,6 +25,13 @@ setting defaulting to the paper's value. Per step i at R_i (section 4, equation 
   (k_c = 7; the paper's "unit space" read as the cell), ``dir`` from a texture of
   uniformly distributed unit directions tiling space the same way. Both textures are
   fixed in the world (seeded by ``seed``), so the grain stays put as the camera moves.
+  Section 5 takes "the first and second closest particles": ``glow`` = 2 adds a second at
+  4/3 the distance (the ratio of the mean distances to a point's nearest and second nearest
+  neighbour in a Poisson field of particles) along an independent direction from the
+  texture, and I_s is the two particles' mean: the neighbourhood's light estimated from two
+  samples instead of one, of about the same size (their sum would double the glow the paper's
+  constants were tuned for; results/particle-glow-ground-truth measures both).
+  ``glow`` = 1, the default, is equations 3-4's one.
 * ``I_s``, the nearby particle's radiance from Sun et al. 2005's surface radiance model
   (appendix B, equation 9), the particle a Lambertian patch facing R_i (normal -dir) with
   BRDF k_d = albedo / pi: I0 k_d [exp(-T) cos(theta_s) / D^2 + beta^2 G_0(T, theta_s) /
@@ -60,7 +67,6 @@ stages ``multiple`` and ``multiple_view``) and read at every step as sigma_s R(x
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import warp as wp
@@ -81,6 +87,7 @@ from ..scattering import SETTINGS as MS_SETTINGS
 from ..scattering import MultipleScattering, ScatteredLight, scattered_light, scattered_on_surface
 from ..scattering import check_settings as check_ms_settings
 from ..scattering import leaves_out as ms_leaves_out
+from ..scene.procedural import density_texture, direction_texture
 from ..shading import LightDepthVolume, camera_segment, step_in_scatter_through_maps, surface_through_maps
 from ..upload import (EXTINCTION_BIAS, EXTINCTION_SETTINGS, LIGHT_VOLUME_BIAS, LIGHT_VOLUME_SETTINGS, SceneUploads,
                       pinhole, shadowed_lights)
@@ -94,9 +101,10 @@ SETTINGS = {
     "shadow_map_res": Setting(256, 4, 8192, "texels per side of each shadow map (cube maps: per face)"),
     "depth_bias": Setting(0.02, 0.0, 1.0e3, "shadow-map depth bias, scene units"),
     "shadow_steps": Setting(32, 1, 1 << 16, "steps toward a light through grid media (the others: closed form)"),
-    "glow": Setting(1, 0, 1, "0: the direct sample I_o alone (a single-scattering march through shadow maps); "
-                             "the glow imitates multiple scattering, so it is added only where "
-                             "multiple_scattering = 0 (the paper's model)"),
+    "glow": Setting(1, 0, 2, "how many nearby particles glow at each step: none (the direct sample I_o alone, a "
+                             "single-scattering march through shadow maps), the nearest (equations 3-4) or the first "
+                             "and second nearest (section 5), their light averaged; the glow imitates multiple scattering, so it is added "
+                             "only where multiple_scattering = 0 (the paper's model)", names=("off", "nearest", "two")),
     "k_c": Setting(7.0, 0.0, 1.0e4, "equation 3: the nearby particle lies up to k_c cells from the march point"),
     "c1": Setting(0.05, 0.0, 1.0e3, "equation 5: beta = ((1 - d) + c1) c2; c1 keeps beta > 0 where d = 1"),
     "c2": Setting(0.03, 0.0, 1.0e6, "equation 5: beta's scale, per scene unit"),
@@ -204,6 +212,37 @@ def particle_radiance(gs: Glow, sl: ShadowedLights, c: wp.vec3, normal: wp.vec3,
     return L
 
 
+#: The second nearest particle lies SECOND_NEAREST times as far as the nearest: the ratio of their
+#: mean distances in a Poisson field of particles, Gamma(7/3) / (Gamma(2) Gamma(4/3)) = 4/3.
+SECOND_NEAREST = 4.0 / 3.0
+
+
+@wp.func
+def nearby_glow(gs: Glow, sl: ShadowedLights, x: wp.vec3, sig: wp.vec3, sig_s: wp.vec3, r_ball: float) -> wp.vec3:
+    """sigma_s w I_s at the march point x: the light of the ``glow`` nearest particles (one or
+    two, averaged) of x's texture cell, the nearest at D = k_c (1 - d) cells along the cell's
+    direction (equations 3-4), the second SECOND_NEAREST times as far along the direction of the
+    cell half the texture away (an independent draw)."""
+    cell = cell_of(gs, x)
+    dbar = gs.density[cell]
+    w = gs.weight[cell]
+    out = wp.vec3(0.0)
+    if w > 0.0:
+        base = x
+        if gs.anchor != 0:
+            base = (wp.vec3(wp.floor(x[0] / gs.cell), wp.floor(x[1] / gs.cell), wp.floor(x[2] / gs.cell)) +
+                    wp.vec3(0.5)) * gs.cell
+        beta = ((1.0 - dbar) + gs.c1) * gs.c2
+        albedo = wp.cw_div(sig_s, wp.max(sig, wp.vec3(1.0e-30)))
+        n3 = gs.res * gs.res * gs.res
+        reach = gs.k_c * (1.0 - dbar) * gs.cell
+        for j in range(gs.glow):
+            dirn = gs.direction[(cell + j * (n3 / 2)) % n3]
+            c = base + (reach * wp.where(j == 0, 1.0, SECOND_NEAREST)) * dirn
+            out += w * wp.cw_mul(sig_s, particle_radiance(gs, sl, c, -dirn, beta, r_ball, albedo))
+    return out / float(wp.max(gs.glow, 1))
+
+
 @wp.kernel
 def march_glow(offset: int, cam: RasterView, m: Media, s: Surfaces, sl: ShadowedLights, gs: Glow,
                background: wp.vec3, ms: ScatteredLight, image: wp.array(dtype=wp.vec3)):
@@ -226,20 +265,8 @@ def march_glow(offset: int, cam: RasterView, m: Media, s: Surfaces, sl: Shadowed
                     src += step_in_scatter_through_maps(m, sl, l, o, d, ta + float(k) * dt, dt, gs.shadow_steps)
                 if ms.lat.n > 0:  # the light scattered more than once, solved (in place of the glow)
                     src += scattered_light(ms, sig_s, x)
-                elif gs.glow != 0 and sl.lights.shape[0] > 0:  # I_s: the nearby particle's light
-                    cell = cell_of(gs, x)
-                    dbar = gs.density[cell]
-                    w = gs.weight[cell]
-                    if w > 0.0:
-                        dirn = gs.direction[cell]
-                        base = x
-                        if gs.anchor != 0:
-                            base = (wp.vec3(wp.floor(x[0] / gs.cell), wp.floor(x[1] / gs.cell),
-                                            wp.floor(x[2] / gs.cell)) + wp.vec3(0.5)) * gs.cell
-                        c = base + (gs.k_c * (1.0 - dbar) * gs.cell) * dirn
-                        beta = ((1.0 - dbar) + gs.c1) * gs.c2
-                        albedo = wp.cw_div(sig_s, wp.max(sig, wp.vec3(1.0e-30)))
-                        src += w * wp.cw_mul(sig_s, particle_radiance(gs, sl, c, -dirn, beta, 0.5 * dt, albedo))
+                elif gs.glow != 0 and sl.lights.shape[0] > 0:  # I_s: the nearby particles' light
+                    src += nearby_glow(gs, sl, x, sig, sig_s, 0.5 * dt)
                 L += wp.cw_mul(wp.cw_mul(tr, src), step_integral_rgb(sig, dt))
                 tr = wp.cw_mul(tr, transmittance_rgb(sig * dt))
     if hit:
@@ -250,26 +277,6 @@ def march_glow(offset: int, cam: RasterView, m: Media, s: Surfaces, sl: Shadowed
     else:
         L += wp.cw_mul(tr, background)
     image[tid] = L
-
-
-def _normal_cdf(z: np.ndarray) -> np.ndarray:
-    return 0.5 * (1.0 + np.vectorize(math.erf)(z / math.sqrt(2.0)))
-
-
-def density_texture(res: int, mu: float, sigma: float, x_max: float, lognormal: bool, seed: int) -> np.ndarray:
-    """res^3 cell densities d = CDF(x | mu, sigma), x uniform in (0, x_max] per cell (float32)."""
-    x = (1.0 - np.random.default_rng(seed).random(res**3)) * x_max  # (0, x_max]
-    z = (np.log(x) - mu) / sigma if lognormal else (x - mu) / sigma
-    return _normal_cdf(z).astype(np.float32)
-
-
-def direction_texture(res: int, seed: int) -> np.ndarray:
-    """res^3 unit vectors, uniformly distributed over the sphere (float32)."""
-    u = np.random.default_rng(seed).random((res**3, 2))
-    z = 1.0 - 2.0 * u[:, 0]
-    r = np.sqrt(np.maximum(1.0 - z * z, 0.0))
-    phi = 2.0 * np.pi * u[:, 1]
-    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1).astype(np.float32)
 
 
 class ParticleGlow(Technique):
