@@ -41,11 +41,10 @@ bake. Surfaces are part of the iteration: a characteristic that ends on one star
 the surface reflects, of the lights' direct light and of the sky in order 0 and of the
 lattice's field L_{k-1} in order k (``reflect_at_ends``), so light goes from the media to a
 wall and back, and from wall to wall; a march's visible surface reflects the field too
-(``scattered_on_surface``). A surface outside the lattice (a floor beyond the fog) reflects
-the sky where a direction misses the lattice's box and the field where it meets it, read
-where the direction enters the box (``reflected_from_outside``), in the iteration and in the
-image alike; its lights' and sky's light in order 0 (the sky seen along its normal,
-``shading.sky_along_normal``). Everything converges to the all-orders answer as
+(``scattered_on_surface``). A surface more than a cell outside the lattice (a floor beyond
+the fog) reflects the lights and the sky (seen along its normal, ``shading.sky_along_normal``)
+once into the iteration, and in the image the field where each of its directions enters the
+lattice's box and the sky where one misses it (``reflected_from_outside``). Everything converges to the all-orders answer as
 the nodes and directions rise (error ~ 1/n, 1/D), up to the light leaking through surfaces
 thinner than a cell, whose two sides share nodes.
 
@@ -241,13 +240,6 @@ def inside_margin(lo: wp.vec3, hi: wp.vec3, margin: float, p: wp.vec3) -> bool:
 
 
 @wp.func
-def in_lattice(lat: Lattice, p: wp.vec3) -> bool:
-    """Whether p lies within the lattice's bounds, padded by a thousandth of a cell (a surface
-    on a bound is inside)."""
-    return inside_margin(lat.lo, lat.hi, 1.0e-3 * wp.max(cell_size(lat, p)), p)
-
-
-@wp.func
 def corner_weight(lat: Lattice, q: int, w: float, p: wp.vec3, n: wp.vec3) -> float:
     """A trilinear weight w of node q, or 0 where the node lies behind the plane through p
     with normal n."""
@@ -293,35 +285,25 @@ def reflected_field(field: wp.array(dtype=wp.vec3), lat: Lattice, mat: Material,
 
 
 @wp.func
-def field_reaches(sl: ScatteredLight, p: wp.vec3) -> bool:
-    """Whether a surface at p lies within the lattice, where the field is read at p itself; the
-    term on."""
-    if sl.lat.n == 0:
-        return False
-    return in_lattice(sl.lat, p)
-
-
-@wp.func
 def reflected_from_outside(field: wp.array(dtype=wp.vec3), lat: Lattice, mat: Material, p: wp.vec3, n: wp.vec3,
                            wo: wp.vec3, sky: wp.vec3) -> wp.vec3:
-    """What a surface at p outside the lattice reflects toward wo of a sky of radiance ``sky``
-    where a direction misses the lattice's box and of the field where it meets it, read where
-    the direction enters the box (no medium lies outside it, so the radiance leaving the box
-    along -w_d arrives unchanged; surfaces between are not tested). Written as the sky's exact
-    Lambertian rho L plus, over the directions that meet the box, f cos (L(e, w_d) - L_sky)
-    4 pi / D: far from the media the sky alone, and as the surface nears the box the field,
-    continuously (a floor just past a cloud lit by it, at every lattice size)."""
+    """What a surface at p, a cell or more outside the lattice, reflects toward wo,
+    sum_d f_r cos L 4 pi / D: where the direction meets the lattice's box, L is the field where
+    it enters the box (no medium lies outside it, so the radiance leaving it along -w_d arrives
+    unchanged; surfaces between are not tested); where it misses the box, a sky of radiance
+    ``sky``."""
     D = lat.directions.shape[0]
     dw = 4.0 * PI / float(D)
-    out = wp.cw_mul(mat.diffuse, sky)
+    out = wp.vec3(0.0)
     for d in range(D):
         wi = -lat.directions[d]
         c = wp.dot(n, wi)
         if c > 0.0:
             a, b = ray_box(p, wi, lat.lo, lat.hi)
+            L = sky
             if a <= b and b > 0.0:
                 L = lattice_sample(field, d, D, lat, p + wp.max(a, 0.0) * wi)
-                out += reflected(mat, n, wo, wi, c, (L - sky) * dw, wp.vec3(1.0))
+            out += reflected(mat, n, wo, wi, c, L * dw, wp.vec3(1.0))
     return out
 
 
@@ -329,12 +311,14 @@ def reflected_from_outside(field: wp.array(dtype=wp.vec3), lat: Lattice, mat: Ma
 def scattered_on_surface(sl: ScatteredLight, s: Surfaces, mat: Material, p: wp.vec3, n: wp.vec3,
                          wo: wp.vec3) -> wp.vec3:
     """What a surface at p (normal n facing wo) reflects toward wo of the light the media have
-    scattered and the surfaces have reflected (``reflected_field`` of L_{>=1}) within the
-    lattice, and, outside it, of the light leaving the lattice toward p and of the sky unless the
-    technique gathers it there itself (``reflected_from_outside``); zero without the term."""
+    scattered and the surfaces have reflected: within a cell of the lattice, of the field at p
+    (``reflected_field`` of L_{>=1}); farther out, of the light leaving the lattice toward p and
+    of the sky unless the technique gathers it there itself (``reflected_from_outside``; it read
+    the sky alone, and a floor a cell below a lit fog lost the fog's light). Zero without the
+    term."""
     if sl.lat.n == 0:
         return wp.vec3(0.0)
-    if field_reaches(sl, p):
+    if inside_margin(sl.lat.lo, sl.lat.hi, wp.max(cell_size(sl.lat, p)), p):
         return reflected_field(sl.field, sl.lat, mat, p, n, wo)
     return reflected_from_outside(sl.field, sl.lat, mat, p, n, wo, sl.sky)
 
@@ -376,8 +360,8 @@ def phase_matrix(offset: int, m: Media, directions: wp.array(dtype=wp.vec3), out
 class Ends:
     """Where each characteristic (direction d, node q; q fastest) ends: its length, the point and
     the normal (facing the node) of the surface there, the surface's face (-1: none, the
-    lattice's boundary; -2 - face: a surface outside the lattice, its field read where each
-    direction enters the lattice) and the radiance arriving from there before any scattering (``start``)."""
+    lattice's boundary; -2: a surface more than a cell outside the lattice, whose light is taken
+    once, not iterated) and the radiance arriving from there before any scattering (``start``)."""
 
     length: wp.array(dtype=float)
     point: wp.array(dtype=wp.vec3)
@@ -391,8 +375,8 @@ def characteristics(offset: int, m: Media, s: Surfaces, lights: wp.array(dtype=E
                     sky: wp.vec3, shadow_steps: int, ends: Ends):
     """How far back along w_d node q sees, to the lattice's boundary or the first surface, and
     the radiance arriving from there before any scattering in the media: the sky, or what the
-    surface reflects toward w_d of the lights' direct light (and, outside the lattice, whose
-    field holds no sky, of the sky: Lambertian, its visibility taken along the normal)."""
+    surface reflects toward w_d of the lights' direct light (and, outside the lattice, where the
+    iteration cannot reach it, of the sky: Lambertian, its visibility taken along the normal)."""
     tid = wp.tid() + offset
     n3 = lat.n * lat.n * lat.n
     q = tid % n3
@@ -414,8 +398,8 @@ def characteristics(offset: int, m: Media, s: Surfaces, lights: wp.array(dtype=E
         ends.point[tid] = p
         ends.normal[tid] = nf
         ends.face[tid] = face
-        if not in_lattice(lat, p):
-            ends.face[tid] = -2 - face
+        if not inside_margin(lat.lo, lat.hi, wp.min(cell_size(lat, p)), p):
+            ends.face[tid] = -2
             if wp.max(sky) > 0.0:
                 start += sky_along_normal(m, s, mat, p, nf, sky, shadow_steps)
     ends.length[tid] = t
@@ -434,8 +418,8 @@ def surface_starts(offset: int, ends: Ends):
 def reflect_at_ends(offset: int, s: Surfaces, lat: Lattice, ends: Ends, L: wp.array(dtype=wp.vec3),
                     out: wp.array(dtype=wp.vec3)):
     """The radiance a characteristic starts with in the next order: what the surface at its end
-    reflects toward w_d of the field L (``reflected_field``; outside the lattice,
-    ``reflected_from_outside``, its sky already in the start); zero where it ends on no surface."""
+    reflects toward w_d of the field L (``reflected_field``); zero where it ends on no surface
+    or more than a cell outside the lattice (its light taken once, in the start)."""
     tid = wp.tid() + offset
     n3 = lat.n * lat.n * lat.n
     face = ends.face[tid]
@@ -443,9 +427,6 @@ def reflect_at_ends(offset: int, s: Surfaces, lat: Lattice, ends: Ends, L: wp.ar
     if face >= 0:
         out[tid] = reflected_field(L, lat, s.material[face], ends.point[tid], ends.normal[tid],
                                    lat.directions[tid / n3])
-    elif face <= -2:
-        out[tid] = reflected_from_outside(L, lat, s.material[-2 - face], ends.point[tid], ends.normal[tid],
-                                          lat.directions[tid / n3], wp.vec3(0.0))
 
 
 @wp.func
@@ -987,7 +968,7 @@ class MultipleScattering:
         ends.start = wp.empty(size, dtype=wp.vec3, device=device)
         dev.launch(characteristics, size, [m, surfaces, lights, lat, wp.vec3(*scene.background), shadow_steps, ends],
                    device, work=4.0 + lights.shape[0])
-        reflects = bool(scene.surfaces) and bool(np.any(ends.face.numpy() != -1))
+        reflects = bool(scene.surfaces) and bool(np.any(ends.face.numpy() >= 0))
         source = wp.empty(size, dtype=wp.vec3, device=device)
         dev.launch(light_source, n3, [m, surfaces, lights, lat, sigma_t, self.sigma_s, M, shadow_steps, source],
                    device, work=max(1, lights.shape[0]) * (4.0 * lat.n + D))

@@ -113,7 +113,7 @@ SETTINGS = {
     "light_samples": Setting(4, 1, 1024, "points of a one-particle instance whose light is averaged"),
     "sky_samples": Setting(8, 0, 256, "directions the sky's light (the scene's background) is gathered from, each "
                                        "through its own coarse light pass; 0: no sky light"),
-    "widen": Setting(0.0, 0.0, 16.0, "forward-scattering widening (section 2.2): the light at a texel averaged with a "
+    "widen": Setting(0.0, 0.0, 16.0, "forward-scattering widening (section 2.3): the light at a texel averaged with a "
                                      "ring this many median particle radii across, weighted by the phase function; "
                                      "0: off"),
     "object_depth": Setting(1, 0, 1, "1: depth impostors (a block's opacity cut where a surface lies inside its "
@@ -198,7 +198,7 @@ def make_impostors(offset: int, B: Blocks, reach: wp.array(dtype=float), imp: Im
 def particle_light_transmittance(m: LightMap, P: Particles, l: int, light: Emitter, x: wp.vec3, wi: wp.vec3,
                                  widen: float, ph: PhaseParams, table: wp.array(dtype=float)) -> wp.vec3:
     """Transmittance from light l to x; ``widen`` > 0: the paper's forward-scattering widening
-    (section 2.2: "the radiance of those pixels of both enclosing slices are taken into
+    (section 2.3: "the radiance of those pixels of both enclosing slices are taken into
     account, for which the phase function is not negligible"), read as the light at x plus
     the light at six points a distance ``widen`` across the light's ray and as far upstream
     (toward the light), each weighted by the phase function for scattering from there to x

@@ -5,7 +5,8 @@ Using Opacity Propagation", GRAPP 2011 (it builds on Kaplanyan 2009's light
 propagation volumes, 800x600 on a GTX 280): an RBF medium injected into an extinction
 volume (EV), optical depth propagated from each light through it into an opacity
 propagation volume (OPV) by a 6-neighbour gathering wavefront (equations 6-7), and a
-fixed-step ray march that reads both (equations 5, 8-10). Stages:
+fixed-step ray march that reads both (equations 5, 9-10; equation 8's per-step blend
+L = (1 - K_t) L + K_t L_in is replaced by the step's exact integral). Stages:
 
 * ``inject`` (reads the medium): sigma_t at the centres of an n^3 grid over a box that
   holds the media (see ``volume_bounds``: the surfaces' box when it is a room around them,
@@ -45,7 +46,10 @@ fixed-step ray march that reads both (equations 5, 8-10). Stages:
   over each step (beyond the paper: a step that subtends more than 0.1 rad at a point or spot
   light is split into equal angles seen from the light, each with its share of the step's
   1/d^2, ``physics.lights.angle_point``: at the default step the pixel nearest the light was
-  under half its value, results/multiple-scattering's fog-box rows); surfaces shaded with Phong (Lambert + normalised Phong) and attenuated by
+  under half its value, results/multiple-scattering's fog-box rows). Equation 8 blends each
+  step as L = (1 - K_t) L + K_t L_in; the march instead adds T_cam sigma_s p L_in (1 -
+  exp(-sigma_t dt)) / sigma_t and scales T_cam by exp(-sigma_t dt), the exact integral over a
+  step of constant coefficients, so the image does not depend on the step; surfaces shaded with Phong (Lambert + normalised Phong) and attenuated by
   both optical depths (equation 10). Surfaces do not occlude lights (as in the paper). A
   surface point outside the volume reads the OPV where its path to the light enters the
   volume (no medium lies outside it), or nothing when that path misses the volume.
