@@ -19,6 +19,7 @@ import warp as wp
 import warpvol as wv
 from warpvol.scene.procedural import brightened
 
+from .fingerprint import probe
 from .harness import device_name, git_commit
 
 TARGET = 0.05
@@ -58,9 +59,14 @@ def main(argv=None) -> None:
             if truth is None:  # one truth per box, at k = 1e-3, scaled: the answer is linear in the lights
                 truth = wv.render(scene, "reference", device="cpu", target_error=0.01).image.astype(np.float64) / k
             error = wv.relative_rmse(frame.image, truth * k)
+            knob = wv.technique_class(frame.technique).QUALITY.knob
             rows.append({"box": name, "brightness": k, "mean_radiance": float(np.mean(truth * k)),
                          "technique": frame.technique, "choice": frame.choice, "estimate": frame.error_estimate,
-                         "error": error, "seconds": seconds})
+                         "error": error, "seconds": seconds,
+                         # what bench report --stale renders again: the box at the technique and knob auto chose
+                         "probe": probe({"technique": frame.technique,
+                                         "params": {"technique": frame.technique, knob: frame.settings[knob],
+                                                    **frame.moved_to_limit}}, scene)})
             print(f"{name} k={k:g}: {frame.technique} error {error:.3g} ({seconds:.1f} s)", flush=True)
     doc = {"command": "PYTHONPATH=. .venv/bin/python -m bench.auto_check", "device": device_name("cpu"),
            "warp": wp.config.version, "commit": git_commit(), "measured": time.strftime("%Y-%m-%d %H:%M:%S"),

@@ -29,7 +29,8 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
           "impostors against billboards, both against the single-scattering reference",
           "depth_impostors", "accuracy", depth_impostors.impostor_objects_grid, depth_impostors.impostor_objects),
     Sweep("depth-impostors-clipping", "clipping repaired (Umenhoffer & Szirmay-Kalos 2005 section 2.4): 25 large "
-          "particles straddling a plane, billboards against depth impostors, still and drifting through the plane, "
+          "particles straddling a plane, billboards against depth impostors, each particle shaded as a whole (the paper) "
+          "and per pixel along its chord, still and drifting through the plane, "
           "against the single-scattering reference over the seam and over the image, 96x96", "depth_impostors", "table", depth_impostors.impostor_clipping_grid,
           depth_impostors.impostor_clipping, note=depth_impostors.CLIP_NOTE),
     Sweep("particle-glow-figure5", "particle_glow: the glowy-light paper figure 5's density distributions (mu, sigma; A: 2, "

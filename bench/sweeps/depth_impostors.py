@@ -247,7 +247,8 @@ CLIP_NOTE = ("The paper's claim (section 2.4): billboards \"are clipped by the o
              "removed. A one-particle instance is cut exactly along its chord at the surface; a billboard stands at "
              "its centre, wholly in front of the surface or behind it. *moving*: the particles drift 0.05 a frame "
              "along the plane's normal for four frames (`Renderer.update(medium=...)`), the errors the mean over the "
-             "frames. Where the particles crowd into a thick cloud (depth-impostors-objects), the seam is not what "
+             "frames. *particle_shading*: sphere is the paper's one radiance a particle (its irradiance averaged over "
+             "the sphere); chord shades each pixel's visible chord at the depth its light comes from. Where the particles crowd into a thick cloud (depth-impostors-objects), the seam is not what "
              "the error is made of: each particle is shaded with one radiance and the light pass holds the cloud "
              "alone (docs/techniques/depth_impostors.md).")
 
@@ -288,7 +289,8 @@ def _clip_seam(scene) -> np.ndarray:
 
 
 def impostor_clipping_grid(quick: bool) -> list[dict]:
-    return [{"object_depth": k, "motion": mo} for mo in ("still", "moving") for k in ("billboards", "impostors")]
+    return [{"object_depth": k, "motion": mo, "particle_shading": sh} for mo in ("still", "moving")
+            for sh in ("sphere", "chord") for k in ("billboards", "impostors")]
 
 
 def impostor_clipping(params: dict, device: str, quick: bool) -> dict:
@@ -299,7 +301,8 @@ def impostor_clipping(params: dict, device: str, quick: bool) -> dict:
     table = clip_table(quick)
     scene = wv.load_scene(table)
     r = wv.Renderer(scene, technique="depth_impostors", multiple_scattering=0, device=device,
-                    object_depth=params["object_depth"], light_pass="exact")
+                    object_depth=params["object_depth"], particle_shading=params["particle_shading"],
+                    light_pass="exact")
     spp = 16 if quick else 256
     if params["motion"] == "still":
         row = time_frames(r, repeats=2 if quick else 5, invalidate=("medium", "lights"))
@@ -332,7 +335,7 @@ def impostor_clipping(params: dict, device: str, quick: bool) -> dict:
     row["table"] = {"seam error": float(np.mean(seam)), "image error": float(np.mean(whole)),
                     "HDR-FLIP": float(np.mean(flips)), "seam pixels": int(np.mean(pixels)),
                     "reference noise (image)": float(floor)}
-    if params["motion"] == "still":
+    if params["motion"] == "still" and params["particle_shading"] == "sphere":
         row["images"] = {"image": frames[0][1]}
         if params["object_depth"] == "impostors":
             row["images"]["reference"] = ref

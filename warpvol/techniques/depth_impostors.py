@@ -116,6 +116,11 @@ SETTINGS = {
     "widen": Setting(0.0, 0.0, 16.0, "forward-scattering widening (section 2.3): the light at a texel averaged with a "
                                      "ring this many median particle radii across, weighted by the phase function; "
                                      "0: off"),
+    "particle_shading": Setting(0, 0, 1, "how a one-particle instance is shaded: sphere, one radiance a particle (its "
+                                         "irradiance averaged over light_samples points of the sphere: the paper's "
+                                         "particles); chord, each pixel's visible chord through it at the depth its "
+                                         "light comes from (large or thick particles, whose lit and shadowed sides "
+                                         "differ, and a camera among them)", names=("sphere", "chord")),
     "object_depth": Setting(1, 0, 1, "1: depth impostors (a block's opacity cut where a surface lies inside its "
                                      "depth interval); 0: billboards (a block at its centre plane, as the paper fixes)",
                                      names=("billboards", "impostors")),
@@ -235,11 +240,18 @@ class CloudLight:
 @wp.struct
 class Shaded:
     """The shade stage's output: each textured instance's texels (from ``first`` of it) and each
-    one-particle instance's radiance."""
+    one-particle instance's radiance; with ``chord`` = 1 the one-particle instances are shaded
+    in the gather instead, per pixel, from what lights the cloud (``cl``, ``pf``, ``widen``, the
+    lattice ``ms``)."""
 
     texels: wp.array(dtype=wp.vec3)
     first: wp.array(dtype=int)
     particles: wp.array(dtype=wp.vec3)
+    chord: int
+    cl: CloudLight
+    pf: PhaseFn
+    ms: ScatteredLight
+    widen: float
 
 
 @wp.struct
@@ -380,6 +392,25 @@ def blend4(a: wp.array(dtype=wp.vec3), base: int, k: wp.vec4i, ax: float, ay: fl
     return wp.lerp(top, wp.lerp(a[base + k[2]], a[base + k[3]], ax), ay)
 
 
+@wp.func
+def chord_radiance(sh: Shaded, albedo: wp.vec3, sigma: wp.vec3, o: wp.vec3, d: wp.vec3, a: float, b: float) -> wp.vec3:
+    """What a pixel's chord [a, b] through a one-particle instance scatters toward the eye per
+    unit opacity, shaded at the depth its light comes from: the mean of s under sigma e^(-sigma s)
+    over the chord, 1 / sigma - l e^(-sigma l) / (1 - e^(-sigma l)) (the middle where thin,
+    the front where thick)."""
+    sig = (sigma[0] + sigma[1] + sigma[2]) / 3.0
+    l = b - a
+    t = 0.5 * l
+    tau = sig * l
+    if tau > 1.0e-3:
+        t = 1.0 / sig - l * wp.exp(-tau) / (1.0 - wp.exp(-tau))
+    x = o + (a + t) * d
+    L = in_scatter(sh.cl.m, sh.cl.P, sh.cl.lights, sh.pf.phase, sh.pf.table, x, -d, sh.widen, 0)
+    if sh.cl.sky.shape[0] > 0:
+        L += in_scatter(sh.cl.m_sky, sh.cl.P, sh.cl.sky, sh.pf.phase, sh.pf.table, x, -d, 0.0, 1)
+    return wp.cw_mul(albedo, L) + scattered_light(sh.ms, albedo, x)
+
+
 @wp.kernel
 def gather(offset: int, per: int, cam: RasterView, B: Blocks, imp: Impostors, tl: TileLists,
            shaded: Shaded, surf: SurfaceLayer, background: wp.vec3, image: wp.array(dtype=wp.vec3)):
@@ -419,7 +450,10 @@ def gather(offset: int, per: int, cam: RasterView, B: Blocks, imp: Impostors, tl
                     b = wp.min(b, t_s)
                 if b > a:
                     tr = transmittance_rgb(B.sigma_t[t] * (b - a))
-                    Lq = shaded.particles[i]
+                    if shaded.chord != 0:
+                        Lq = chord_radiance(shaded, B.albedo[t], B.sigma_t[t], o, d, a, b)
+                    else:
+                        Lq = shaded.particles[i]
             else:
                 t_plane = wp.dot(c - o, imp.fwd) / cos_f
                 x = o + t_plane * d - c  # in the plane: x . fwd = 0
@@ -531,11 +565,12 @@ class DepthImpostors(Technique):
             Stage("impostors", self._impostors, reads=("camera",), settings=("impostor_detail", "impostor_res"),
                   after=("templates",)),
             Stage("shade", self._shade, reads=("camera",),
-                  settings=("widen", "multiple_scattering", "light_samples", "sky_samples"),
+                  settings=("widen", "multiple_scattering", "light_samples", "sky_samples", "particle_shading"),
                   after=("light", "impostors", "multiple_view")),
             Stage("surfaces_lit", self._surfaces_lit, reads=("camera",), after=("light", "surfaces"),
                   needed=surfaces),
-            Stage("gather", self._gather, reads=("camera", "background"), settings=("object_depth",),
+            Stage("gather", self._gather, reads=("camera", "background"),
+                  settings=("object_depth", "particle_shading", "widen", "multiple_scattering"),
                   after=("shade", "surfaces_lit") if surfaces else ("shade",)),
         ]
 
@@ -732,7 +767,7 @@ class DepthImpostors(Technique):
                        [self.blocks, self.impostors, self._cloud_light(), phase_fn(self.phase, self.table), eye, widen,
                         ms, self._textured, self.texel_radiance], device,
                        work=LIGHT_WORK * (len(self.scene.lights) + sky.shape[0]))
-        if self.n_instances > self.n_textured:
+        if self.n_instances > self.n_textured and not self.settings["particle_shading"]:
             n = self._cloud.struct.centres.shape[0]
             for lights, lp, is_sky in ((self.uploads.lights, self.light_pass, 0), (sky, self.sky_pass, 1)):
                 L = lights.shape[0]
@@ -772,6 +807,10 @@ class DepthImpostors(Technique):
         self.image = wp.empty(n, dtype=wp.vec3, device=device)
         shaded = Shaded()
         shaded.texels, shaded.first, shaded.particles = self.texel_radiance, self._first, self.particle_radiance
+        shaded.chord = int(self.settings["particle_shading"])
+        shaded.cl, shaded.pf, shaded.ms = self._cloud_light(), phase_fn(self.phase, self.table), self.multiple.struct()
+        radii = self._cloud.radius
+        shaded.widen = self.settings["widen"] * (float(np.median(radii)) if len(radii) else 0.0)
         surf = SurfaceLayer()
         surf.depth, surf.colour, surf.object_depth = self.surf_depth, self.surf_colour, self.settings["object_depth"]
         per = dev.per_thread(device)
