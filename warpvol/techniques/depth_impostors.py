@@ -570,7 +570,7 @@ class DepthImpostors(Technique):
             Stage("surfaces_lit", self._surfaces_lit, reads=("camera",), after=("light", "surfaces"),
                   needed=surfaces),
             Stage("gather", self._gather, reads=("camera", "background"),
-                  settings=("object_depth", "particle_shading", "widen", "multiple_scattering"),
+                  settings=("object_depth", "particle_shading", "widen", "multiple_scattering", "sky_samples"),
                   after=("shade", "surfaces_lit") if surfaces else ("shade",)),
         ]
 
