@@ -24,7 +24,7 @@ from warpvol import device
 
 #: The kernel modules besides the techniques' (the lattice, the media's, the rasteriser's and the tile lists';
 #: geometry.camera holds functions only, built into the modules that call them).
-SHARED = ("scattering", "shading", "media.grid", "media.lightpass", "media.volume", "geometry.raster",
+SHARED = ("scattering.kernels", "shading", "media.grid", "media.lightpass", "media.volume", "geometry.raster",
           "geometry.tiles", "geometry.shadowmap")
 
 

@@ -1,4 +1,4 @@
-"""The multiple-scattering lattice (warpvol/scattering.py) that every marcher adds: the white
+"""The multiple-scattering lattice (warpvol/scattering/) that every marcher adds: the white
 furnace, convergence with the lattice, agreement with the all-orders reference, caching and
 validation."""
 
