@@ -208,7 +208,7 @@ def test_the_lattice_grades_only_where_even_cells_are_too_coarse():
     """graded_spacing: the nodes still span the media's bounds exactly and in order, the focus
     gets cells several times finer than even ones; media a few mean free paths wide, or not
     much wider than the focus, keep even nodes (alpha 0: the image as before)."""
-    from warpvol.scattering import GRADE_ABOVE, GRADE_CELL, graded_spacing
+    from warpvol.scattering.lattice import GRADE_ABOVE, GRADE_CELL, graded_spacing
     lo, hi, n = np.full(3, -50.0), np.full(3, 50.0), 8
     c, s, alpha, uc = graded_spacing(lo, hi, n, np.array([-1.0, -1, -3]), np.array([1.0, 1, 1]), 0.3)
     assert np.all(alpha > 0.0)
@@ -306,9 +306,9 @@ def test_the_light_scattered_first_keeps_its_energy_on_the_lattice(device, monke
     mean where their hat's is due, a relative (h / d)^2 / 10 or so: 1-2% (and the cap's quadrature,
     under 0.1%), at 8 and 15 nodes alike while the cells span a mean free path or more. Even nodes
     (the lattice would grade these cells, 1.7 mean free paths wide, around the light)."""
-    from warpvol import scattering
+    from warpvol.scattering import lattice
 
-    monkeypatch.setattr(scattering, "GRADE_CELL", np.inf)
+    monkeypatch.setattr(lattice, "GRADE_CELL", np.inf)
     scene = wv.load_scene({
         "camera": {"origin": [0, 0, 4], "target": [0, 0, 0], "fov_y": 30, "width": 4, "height": 3},
         "lights": [{"type": "point", "position": [0.13, 0.21, -0.07], "intensity": 1.0}],
