@@ -175,7 +175,8 @@ GT_LAMP = [0.0, 0.6, 0.0]
 #: No explicit particle within this distance of the lamp (a lamp among particles lights the nearest
 #: ones by 1/d^2 without bound: specks that would outweigh the rest of the image and its noise).
 GT_CLEAR = 0.2
-GT_GLOW = {"off": {"glow": 0}, "nearest": {"glow": 1}, "two": {"glow": 2}, "two, summed": {"glow": 2},
+GT_GLOW = {"off": {"glow": 0, "multiple_scattering": 0}, "nearest": {"glow": 1, "multiple_scattering": 0},
+           "two": {"glow": 2, "multiple_scattering": 0}, "two, summed": {"glow": 2, "multiple_scattering": 0},
            "lattice": {"glow": 0, "multiple_scattering": 8}}
 
 
