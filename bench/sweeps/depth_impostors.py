@@ -187,9 +187,9 @@ def impostor_accuracy(params: dict, device: str, quick: bool) -> dict:
     return row
 
 
-def _plane_in_blocks(scene, centres: np.ndarray, reach: np.ndarray) -> np.ndarray:
-    """(H, W) mask of the pixels whose ray meets the scene's plane inside some block's
-    bounding sphere (where depth impostors and billboards differ)."""
+def _plane_hits(scene) -> tuple[np.ndarray, np.ndarray]:
+    """Per pixel (H, W), the distance along its ray to the scene's first surface's plane and the
+    point where it meets it."""
     cam, plane = scene.camera, scene.surfaces[0]
     o = np.asarray(cam.origin, float)
     d = pixel_directions(cam)
@@ -197,7 +197,13 @@ def _plane_in_blocks(scene, centres: np.ndarray, reach: np.ndarray) -> np.ndarra
     n = np.cross(v[1] - v[0], v[2] - v[0])
     n /= np.linalg.norm(n)
     t_s = ((v[0] - o) @ n) / (d @ n)
-    hit = o + t_s[..., None] * d
+    return t_s, o + t_s[..., None] * d
+
+
+def _plane_in_blocks(scene, centres: np.ndarray, reach: np.ndarray) -> np.ndarray:
+    """(H, W) mask of the pixels whose ray meets the scene's plane inside some block's
+    bounding sphere (where depth impostors and billboards differ)."""
+    t_s, hit = _plane_hits(scene)
     dist = np.linalg.norm(hit[..., None, :] - np.asarray(centres, float)[None, None], axis=-1)
     return np.any(dist < np.asarray(reach, float)[None, None], axis=-1) & (t_s > 0)
 
@@ -275,14 +281,8 @@ def clip_table(quick: bool) -> dict:
 def _clip_seam(scene) -> np.ndarray:
     """(H, W) mask of the pixels whose ray meets the plane inside a particle, or within one
     pixel's width of one (where billboards and depth impostors differ)."""
-    cam, plane, m = scene.camera, scene.surfaces[0], scene.media[0]
-    o = np.asarray(cam.origin, float)
-    d = pixel_directions(cam)
-    v = np.asarray(plane.vertices, float)
-    n = np.cross(v[1] - v[0], v[2] - v[0])
-    n /= np.linalg.norm(n)
-    t_s = ((v[0] - o) @ n) / (d @ n)
-    hit = o + t_s[..., None] * d
+    cam, m = scene.camera, scene.media[0]
+    t_s, hit = _plane_hits(scene)
     pixel = t_s * 2.0 * np.tan(np.radians(cam.fov_y) / 2.0) / cam.height
     dist = np.linalg.norm(hit[..., None, :] - np.asarray(m.positions, float)[None, None], axis=-1).min(axis=-1)
     return (dist < m.radius + pixel) & (t_s > 0)

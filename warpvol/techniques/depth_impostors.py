@@ -755,7 +755,7 @@ class DepthImpostors(Technique):
         self.particle_radiance = wp.zeros(max(self.n_instances, 1), dtype=wp.vec3, device=device)
         m_sky, sky = self._sky_args()
         ms = self.multiple.struct()
-        if ms.lat.n > 0:
+        if ms.lat.n > 0 and not self.settings["particle_shading"]:  # chord: read per pixel in the gather
             dev.launch(scattered_particles, self.n_instances, [self.blocks, ms, self.particle_radiance], device)
         if not len(self.scene.lights) and not sky.shape[0] and ms.lat.n == 0:
             return
