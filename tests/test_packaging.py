@@ -64,3 +64,41 @@ def test_bench_and_viz_read_techniques_through_their_public_api():
             if private and not (isinstance(node.value, ast.Name) and node.value.id in ("self", "cls")):
                 hits.append(f"{path.name}:{node.lineno}: private .{node.attr}")
     assert not hits, hits
+
+
+def _kernels():
+    """Every ``@wp.kernel`` in warpvol: (module path, the function's AST node)."""
+    import ast
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent / "warpvol"
+    for path in sorted(root.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.FunctionDef) and any(
+                    ast.unparse(d).startswith(("wp.kernel", "warp.kernel")) for d in node.decorator_list):
+                yield path.relative_to(root.parent), node
+
+
+def test_every_kernel_follows_the_launch_convention():
+    """``device.launch`` splits a CPU launch into index ranges and passes each range's start first:
+    a kernel that does not take ``offset: int`` first, or decodes its index by hand (``wp.tid()``)
+    other than as ``wp.tid() + offset``, runs each chunk's threads on the first chunk's
+    indices. And no launch goes around ``device.launch`` (``wp.launch`` outside device.py). (The
+    decoding is written in each kernel: Warp allows ``wp.tid()`` in kernels only, not in a function.)"""
+    import ast
+    from pathlib import Path
+
+    kernels = list(_kernels())
+    assert len(kernels) > 50  # the walk found them
+    bad = []
+    for path, node in kernels:
+        first = node.args.args[0] if node.args.args else None
+        if first is None or first.arg != "offset" or ast.unparse(first.annotation) != "int":
+            bad.append(f"{path}:{node.name}: first argument is not offset: int")
+        src = ast.unparse(node)
+        if src.count("wp.tid()") != 1 or src.count("wp.tid() + offset") != 1:
+            bad.append(f"{path}:{node.name}: index not read once as wp.tid() + offset")
+    root = Path(__file__).resolve().parent.parent / "warpvol"
+    bad += [f"{p.relative_to(root.parent)}: wp.launch outside device.py" for p in root.rglob("*.py")
+            if p.name != "device.py" and "wp.launch(" in p.read_text()]
+    assert not bad, "\n".join(bad)

@@ -159,8 +159,9 @@ def make_impostors(offset: int, B: Blocks, reach: wp.array(dtype=float), imp: Im
     the viewer, e^(-tau in front of it) (1 - e^(-its own tau)): the visible part of a thick
     texel lies at its front, not at its middle."""
     T2 = imp.res * imp.res
-    t = textured[(wp.tid() + offset) / T2]
-    k = (wp.tid() + offset) % T2
+    i = wp.tid() + offset
+    t = textured[i / T2]
+    k = i % T2
     tid = B.texel0[t] + k
     R = reach[t]
     u, v = texel_uv(k, imp.res, R)

@@ -332,9 +332,13 @@ def gather_update(offset: int, V: wp.array(dtype=int), Q: wp.array2d(dtype=float
 
 
 @wp.kernel
-def change_norms(I_new: wp.array2d(dtype=Any), I_old: wp.array2d(dtype=Any), D: int, out: wp.array(dtype=float)):
-    """out += (sum (new - old)^2, sum new^2) over the first D columns."""
-    r, i = wp.tid()
+def change_norms(offset: int, I_new: wp.array2d(dtype=Any), I_old: wp.array2d(dtype=Any), D: int,
+                 out: wp.array(dtype=float)):
+    """out += (sum (new - old)^2, sum new^2) over the first D columns (thread r Dp + i: row r, column i;
+    atomics into two numbers: launched in one piece)."""
+    tid = wp.tid() + offset
+    r = tid / I_new.shape[1]
+    i = tid % I_new.shape[1]
     if i < D:
         a = float(I_new[r, i])
         b = float(I_old[r, i])
@@ -749,7 +753,7 @@ class IlluminationNetwork(Technique):
         change = float("nan")
         if measure:
             norms = wp.zeros(2, dtype=float, device=device)
-            wp.launch(change_norms, dim=(3 * n, self.Dp), inputs=[self.I_next, self.I, D, norms], device=device)
+            dev.launch(change_norms, 3 * n * self.Dp, [self.I_next, self.I, D, norms], device, split=False)
             a, b = norms.numpy()
             change = float(np.sqrt(a / b)) if b > 0 else 0.0
         self.I, self.I_next = self.I_next, self.I

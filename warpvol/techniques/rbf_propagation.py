@@ -574,8 +574,8 @@ class RBFPropagation(Technique):
                 centres = wp.array(np.asarray(m.centers, np.float32), dtype=wp.vec3, device=self.device)
                 # atomics: one chunk keeps the adds race-free on the CPU as on the GPU
                 radii, amps = (wp.array(a, dtype=float, device=self.device) for a in m.gaussians())
-                wp.launch(inject_rbfs, dim=len(m.centers), inputs=[0, centres, radii, amps, wp.vec3(*m.peak), v,
-                                                                   self.ev], device=self.device)
+                dev.launch(inject_rbfs, len(m.centers), [centres, radii, amps, wp.vec3(*m.peak), v, self.ev],
+                           self.device, split=False)
 
     def _propagate(self):
         v, n = self.volume, self.settings["grid"]
