@@ -23,9 +23,9 @@ from warpvol import device
 
 
 #: The kernel modules besides the techniques' (the lattice, the media's, the rasteriser's and the tile lists';
-#: geometry.camera holds functions only, built into the modules that call them).
-SHARED = ("scattering.kernels", "shading", "media.grid", "media.lightpass", "media.volume", "geometry.raster",
-          "geometry.tiles", "geometry.shadowmap")
+#: geometry.camera and media.lightmap hold functions only, built into the modules that call them).
+SHARED = ("scattering.kernels", "shading", "media.grid", "media.lightpass", "media.blockpass", "media.volume",
+          "geometry.raster", "geometry.tiles", "geometry.shadowmap")
 
 
 def main(argv=None) -> int:

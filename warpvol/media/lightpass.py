@@ -49,126 +49,17 @@ from ..geometry.intersect import ray_sphere
 from ..physics.constants import PI
 from ..physics.lights import DIRECTIONAL, Emitter, light_incident, particle_incident
 from ..physics.transmittance import sphere_escape, step_integral, transmittance_rgb
-from .particles import BlockCloud, Blocks, ParticleBuffers, Particles, particle_optical_depth
+from .blockpass import splat_block_faces
+from .lightmap import (EXACT, REPRESENTATIONS, SLICES, LightFace, LightMap, deposit, face_coords,
+                       face_ray, item_and_face, light_face, texel_area)
+from .particles import BlockCloud, ParticleBuffers, Particles, particle_optical_depth
 
 dev.kernel_module(__name__)
 
-EXACT = wp.constant(0)
-SLICES = wp.constant(1)
-FOURIER = wp.constant(2)
-REPRESENTATIONS = ("exact", "slices", "fourier")
 MAX_TEXELS = 1024  # texels per face side, at most
 MIN_TEXELS = 64  # and by the rule at least
 MAX_BYTES = 128 << 20  # one map's texels at most (a CPU build holds one copy per core)
-MAX_TEMPLATE_TEXELS = 128  # texels a side of a template's light impostor, at most
 REFINE_ROUNDS = 3  # a map above its tolerance is refined at most this many times before the exact fallback
-
-
-@wp.struct
-class LightFace:
-    """One face of a light's map: orthographic (a directional light) or perspective."""
-    origin: wp.vec3  # orthographic: centre of the near plane; perspective: the light
-    forward: wp.vec3  # unit: the face's axis, the way the light travels
-    right: wp.vec3
-    up: wp.vec3
-    half: float  # orthographic: half width (scene units); perspective: tan of the half angle
-    near: float  # depth range along a texel ray (scene units; distance from the light)
-    far: float
-    ortho: int
-    first: int  # the face's first texel; texel k holds values C k .. C k + C - 1
-
-
-@wp.struct
-class LightMap:
-    """Every light's faces and texels; ``kind`` EXACT (no map), SLICES or FOURIER."""
-    kind: int
-    M: int  # texels per face side
-    C: int  # values per texel: S + 1 slices, or 2 K + 1 Fourier terms
-    faces: wp.array(dtype=LightFace)
-    first_face: wp.array(dtype=int)  # per light
-    face_count: wp.array(dtype=int)  # per light: 1, or 6 for a cube
-    data: wp.array(dtype=wp.vec3)
-
-
-@wp.func
-def face_ray(f: LightFace, u: float, v: float):
-    """Origin and unit direction of the face's ray through (u, v) in [-1, 1]^2."""
-    if f.ortho != 0:
-        return f.origin + f.half * (u * f.right + v * f.up), f.forward
-    return f.origin, wp.normalize(f.forward + f.half * (u * f.right + v * f.up))
-
-
-@wp.func
-def face_coords(f: LightFace, x: wp.vec3) -> wp.vec3:
-    """(u, v, t) of x on the face: its texel-plane coordinates and its depth along the ray."""
-    rel = x - f.origin
-    if f.ortho != 0:
-        return wp.vec3(wp.dot(rel, f.right) / f.half, wp.dot(rel, f.up) / f.half, wp.dot(rel, f.forward))
-    z = wp.max(wp.dot(rel, f.forward), 1.0e-20)
-    return wp.vec3(wp.dot(rel, f.right) / (z * f.half), wp.dot(rel, f.up) / (z * f.half), wp.length(rel))
-
-
-@wp.func
-def light_face(m: LightMap, light: int, x: wp.vec3) -> int:
-    """The face of ``light`` that sees x: its only one, or the cube face of x's major axis."""
-    first = m.first_face[light]
-    if m.face_count[light] == 1:
-        return first
-    rel = x - m.faces[first].origin
-    a = int(0)
-    if wp.abs(rel[1]) > wp.abs(rel[a]):
-        a = 1
-    if wp.abs(rel[2]) > wp.abs(rel[a]):
-        a = 2
-    return first + 2 * a + wp.where(rel[a] < 0.0, 1, 0)
-
-
-@wp.func
-def deposit(m: LightMap, texel: int, t0: float, t1: float, sigma: wp.vec3, near: float, far: float,
-            out: wp.array(dtype=wp.vec3)):
-    """Add a segment [t0, t1] of uniform extinction ``sigma`` on the texel's ray to ``out``:
-    its share of each slice interval, or its closed-form Fourier terms."""
-    base = texel * m.C
-    span = far - near
-    z0 = wp.clamp((t0 - near) / span, 0.0, 1.0)
-    z1 = wp.clamp((t1 - near) / span, 0.0, 1.0)
-    if z1 <= z0:
-        return
-    if m.kind == SLICES:
-        S = m.C - 1
-        a = z0 * float(S)
-        b = z1 * float(S)
-        k = wp.min(int(a), S - 1)
-        while k < S and float(k) < b:
-            lo = wp.max(a, float(k))
-            hi = wp.min(b, float(k + 1))
-            if hi > lo:
-                out[base + k + 1] += sigma * ((hi - lo) * span / float(S))
-            k += 1
-    else:
-        w = sigma * (2.0 * span)
-        out[base] += w * (z1 - z0)
-        for k in range(1, (m.C - 1) // 2 + 1):
-            ang = 2.0 * PI * float(k)
-            out[base + 2 * k - 1] += w * ((wp.sin(ang * z1) - wp.sin(ang * z0)) / ang)
-            out[base + 2 * k] += w * ((wp.cos(ang * z0) - wp.cos(ang * z1)) / ang)
-
-
-@wp.func
-def texel_area(f: LightFace, M: int, u: float, v: float, t: float) -> float:
-    """Area of a texel's footprint across its ray at depth t (scene units^2)."""
-    side = 2.0 * f.half / float(M)
-    if f.ortho != 0:
-        return side * side
-    rho2 = f.half * f.half * (u * u + v * v)
-    return side * side / wp.pow(1.0 + rho2, 1.5) * t * t
-
-
-@wp.func
-def item_and_face(m: LightMap, tid: int):
-    """Thread tid = i F + f of a launch over items and the map's F faces: (i, f, face f)."""
-    F = m.faces.shape[0]
-    return tid / F, tid % F, m.faces[tid % F]
 
 
 @wp.kernel
@@ -246,90 +137,6 @@ def splat_spheres(offset: int, P: Particles, m: LightMap, blocked: int, out: wp.
             a, b = ray_sphere(o, d, c, r)
             if b > a and b > 0.0:
                 deposit(m, f.first + j * M + i, wp.max(a, 0.0), b, sig, f.near, f.far, out)
-
-
-@wp.kernel
-def template_light(offset: int, B: Blocks, owner: wp.array(dtype=int), reach: wp.array(dtype=float), m: LightMap,
-                   T: int, out: wp.array(dtype=wp.vec3)):
-    """Thread j F + f: sphere j of its template (``owner[j]``) into the template's light
-    impostor for orthographic face f, a T x T grid over the template's bounding disc (radius
-    ``reach``) across the light, the paper's block rendered once from the light (b work).
-    A cell sums, over the chords of its centre ray, the chord length L, L z and
-    L (z^2 + L^2 / 12) (z: the chord's mid-depth from the template's centre): the chords'
-    total and the mean and second moment of their depth, all sums, so cores may add
-    private copies. A sphere under a cell deposits its volume in the cell of its centre."""
-    j, fi, f = item_and_face(m, wp.tid() + offset)
-    if f.ortho == 0:
-        return
-    t = owner[j]
-    R = reach[t]
-    r = B.radius[t]
-    c = B.offsets[j]
-    h = 2.0 * R / float(T)  # a cell's side
-    cu = wp.dot(c, f.right)
-    cv = wp.dot(c, f.up)
-    z = wp.dot(c, f.forward)
-    base = (t * m.faces.shape[0] + fi) * T * T
-    if r < h:
-        i = wp.clamp(int(wp.floor((cu + R) / h)), 0, T - 1)
-        k = wp.clamp(int(wp.floor((cv + R) / h)), 0, T - 1)
-        L = (4.0 / 3.0) * PI * r * r * r / (h * h)
-        out[base + k * T + i] += wp.vec3(L, L * z, L * (z * z + r * r / 5.0))
-        return
-    ia = wp.max(int(wp.ceil((cu - r + R) / h - 0.5)), 0)
-    ib = wp.min(int(wp.floor((cu + r + R) / h - 0.5)), T - 1)
-    ja = wp.max(int(wp.ceil((cv - r + R) / h - 0.5)), 0)
-    jb = wp.min(int(wp.floor((cv + r + R) / h - 0.5)), T - 1)
-    for k in range(ja, jb + 1):
-        for i in range(ia, ib + 1):
-            du = (float(i) + 0.5) * h - R - cu
-            dv = (float(k) + 0.5) * h - R - cv
-            q = r * r - du * du - dv * dv
-            if q > 0.0:
-                L = 2.0 * wp.sqrt(q)
-                out[base + k * T + i] += wp.vec3(L, L * z, L * (z * z + L * L / 12.0))
-
-
-@wp.kernel
-def splat_blocks(offset: int, B: Blocks, m: LightMap, T: int, cells: wp.array(dtype=wp.vec3),
-                 out: wp.array(dtype=wp.vec3)):
-    """Thread i F + f: instance i into orthographic face f from its template's light impostor
-    (N / b work): every texel whose centre ray crosses the instance's bounding disc takes the
-    impostor cell under it, its optical depth spread evenly over the depth interval with the
-    chords' mean and variance (mean +- sqrt(3) sd: the block's chords through that texel
-    merged into one segment)."""
-    i, fi, f = item_and_face(m, wp.tid() + offset)
-    if f.ortho == 0:
-        return
-    t = B.tpl[i]
-    R = B.reach[i]
-    rel = B.centre[i] - f.origin
-    cu = wp.dot(rel, f.right) / f.half
-    cv = wp.dot(rel, f.up) / f.half
-    tc = wp.dot(rel, f.forward)
-    ru = R / f.half
-    M = m.M
-    texel = 2.0 / float(M)
-    ia = wp.max(int(wp.ceil((cu - ru + 1.0) / texel - 0.5)), 0)
-    ib = wp.min(int(wp.floor((cu + ru + 1.0) / texel - 0.5)), M - 1)
-    ja = wp.max(int(wp.ceil((cv - ru + 1.0) / texel - 0.5)), 0)
-    jb = wp.min(int(wp.floor((cv + ru + 1.0) / texel - 0.5)), M - 1)
-    base = (t * m.faces.shape[0] + fi) * T * T
-    sig = B.sigma_t[t]
-    for j in range(ja, jb + 1):
-        tj = int(wp.floor((((float(j) + 0.5) * texel - 1.0 - cv) / ru + 1.0) * 0.5 * float(T)))
-        if tj < 0 or tj >= T:
-            continue
-        for ii in range(ia, ib + 1):
-            ti = int(wp.floor((((float(ii) + 0.5) * texel - 1.0 - cu) / ru + 1.0) * 0.5 * float(T)))
-            if ti < 0 or ti >= T:
-                continue
-            s = cells[base + tj * T + ti]
-            if s[0] > 0.0:
-                mean = s[1] / s[0]
-                half = wp.max(wp.sqrt(3.0 * wp.max(s[2] / s[0] - mean * mean, 0.0)), 1.0e-6)
-                deposit(m, f.first + j * M + ii, tc + mean - half, tc + mean + half, sig * (s[0] / (2.0 * half)),
-                        f.near, f.far, out)
 
 
 @wp.kernel
@@ -581,8 +388,8 @@ class LightPass:
         """The map of ``cloud`` (its bounding ball ``centre``, ``R``) for every light.
         ``blocks``: the same cloud as instances of templates (every particle in one); its
         orthographic faces (directional lights) are then made from one light impostor per
-        template and face (``template_light``, b work) splatted once per instance
-        (``splat_blocks``, N / b), the paper's block light pass; other faces per particle."""
+        template and face, splatted once per instance (``blockpass``: b + N / b work), the
+        paper's block light pass; other faces per particle."""
         self._blocks = blocks
         kind = REPRESENTATIONS.index(self.representation)
         if (kind == EXACT or self.tolerance > 0.0) and cloud.struct.centres.shape[0] and cloud.bvh is None:
@@ -682,17 +489,8 @@ class LightPass:
             blocks = self._blocks if any(f[7] for f in faces) else None
             self.template_texels = 0
             if n and blocks is not None and blocks.n_instances:
-                R = max(float(cloud.R), 1e-9)
-                # a template texel as wide as a map texel (2 R / M across an orthographic face)
-                T = int(np.clip(np.ceil(blocks.reach_max * M / R), 2, MAX_TEMPLATE_TEXELS))
-                cells = wp.zeros(blocks.n_templates * len(faces) * T * T, dtype=wp.vec3, device=dev_)
-                r_cell = float(np.median(cloud.radius)) * T / (2.0 * blocks.reach_max)  # a sphere's radius in cells
-                dev.launch_private(template_light, blocks.n_offsets * len(faces),
-                                   [blocks.struct, blocks.owner, blocks.reach, m, T], cells, merge_maps, dev_,
-                                   work=max(1.0, 4.0 * r_cell * r_cell))
-                dev.launch_private(splat_blocks, blocks.n_instances * len(faces), [blocks.struct, m, T, cells],
-                                   self._data, merge_maps, dev_, work=C * max(1.0, (M * blocks.reach_max / R) ** 2))
-                self.template_texels = T
+                self.template_texels = splat_block_faces(blocks, cloud.R, float(np.median(cloud.radius)), m,
+                                                         len(faces), self._data, merge_maps, dev_)
             if n and (blocks is None or not all(f[7] for f in faces)):
                 footprint = (M * float(np.median(cloud.radius)) / max(float(cloud.R), 1e-9)) ** 2  # texels a sphere covers
                 dev.launch_private(splat_spheres, n * len(faces), [cloud.struct, m, int(blocks is not None)], self._data,
