@@ -130,6 +130,44 @@ def segment_irradiance(light: Emitter, o: wp.vec3, d: wp.vec3, ta: float, tb: fl
 
 
 @wp.func
+def pick_light(lights: wp.array(dtype=Emitter), span: Span, rng: wp.uint32):
+    """One light for the segment, in proportion to ``segment_irradiance``, by one pass of weighted
+    reservoir sampling: light l replaces the choice with probability w_l / (the sum of weights so
+    far), which leaves each light chosen with w_l / total. Returns (the light, -1 where none
+    reaches the segment; total; its weight w_l; the generator's state after the draws)."""
+    total = float(0.0)
+    chosen = int(-1)
+    w_chosen = float(0.0)
+    for l in range(lights.shape[0]):
+        w = segment_irradiance(lights[l], span.o, span.d, span.ta, span.tb)
+        total += w
+        if w > 0.0 and wp.randf(rng) * total < w:
+            chosen = l
+            w_chosen = w
+    return chosen, total, w_chosen, rng
+
+
+@wp.func
+def equiangular_frame(light: Emitter, span: Span):
+    """Equiangular sampling's frame for a point or spot light over the segment (Kulla & Fajardo
+    2012): (delta, the foot of the light on the line; h, its distance from the line; the angles
+    th_a, th_b the segment's ends make at the light; whether the segment subtends an angle at
+    all). A directional light: (0, 1, 0, 0, False)."""
+    delta = float(0.0)
+    h = float(1.0)
+    th_a = float(0.0)
+    th_b = float(0.0)
+    equiangular = False
+    if light.kind != DIRECTIONAL:
+        delta = wp.dot(light.position - span.o, span.d)
+        h = wp.max(wp.length(light.position - (span.o + delta * span.d)), 1.0e-7)
+        th_a = wp.atan2(span.ta - delta, h)
+        th_b = wp.atan2(span.tb - delta, h)
+        equiangular = th_b - th_a > 1.0e-12
+    return delta, h, th_a, th_b, equiangular
+
+
+@wp.func
 def segment_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Emitter), span: Span, t_ff: float, i_ff: int,
                    exact: bool, c: int, rng: wp.uint32) -> wp.vec3:
     """Direct light scattered toward -d from the media on [ta, tb] from one light, chosen in
@@ -151,32 +189,12 @@ def segment_direct(m: Media, s: Surfaces, lights: wp.array(dtype=Emitter), span:
     tb = span.tb
     L = wp.vec3(0.0)
     mu = m.majorant[c]
-    # one pass of weighted reservoir sampling: light l replaces the choice with probability
-    # w_l / (sum of weights so far), which leaves each light chosen with w_l / total
-    total = float(0.0)
-    chosen = int(-1)
-    w_chosen = float(0.0)
-    for l in range(lights.shape[0]):
-        w = segment_irradiance(lights[l], o, d, ta, tb)
-        total += w
-        if w > 0.0 and wp.randf(rng) * total < w:
-            chosen = l
-            w_chosen = w
+    chosen, total, w_chosen, rng = pick_light(lights, span, rng)
     if chosen < 0:
         return L
     light = lights[chosen]
     point_like = light.kind != DIRECTIONAL
-    delta = float(0.0)
-    h = float(1.0)
-    th_a = float(0.0)
-    th_b = float(0.0)
-    equiangular = False
-    if point_like:
-        delta = wp.dot(light.position - o, d)
-        h = wp.max(wp.length(light.position - (o + delta * d)), 1.0e-7)
-        th_a = wp.atan2(ta - delta, h)
-        th_b = wp.atan2(tb - delta, h)
-        equiangular = th_b - th_a > 1.0e-12
+    delta, h, th_a, th_b, equiangular = equiangular_frame(light, span)
     # the free flight's optical depth from ta and sigma_t, for its MIS weight against equiangular
     # sampling in exact media (taken with the equiangular sample's in one walk)
     tau_f = wp.vec3(0.0)
@@ -243,6 +261,48 @@ def sky_after_last(m: Media, s: Surfaces, o: wp.vec3, d: wp.vec3, background: wp
 
 
 @wp.func
+def make_span(o: wp.vec3, d: wp.vec3, ta: float, tb: float) -> Span:
+    span = Span()
+    span.o = o
+    span.d = d
+    span.ta = ta
+    span.tb = tb
+    return span
+
+
+@wp.func
+def cosine_direction(n: wp.vec3, u1: float, u2: float) -> wp.vec3:
+    """A direction about n with pdf cos / pi, from two uniform numbers."""
+    r = wp.sqrt(u1)
+    phi = TWO_PI * u2
+    tx, ty = orthonormal_basis(n)
+    return wp.normalize(r * wp.cos(phi) * tx + r * wp.sin(phi) * ty + wp.sqrt(wp.max(0.0, 1.0 - r * r)) * n)
+
+
+@wp.func
+def channel_only(L: wp.vec3, channel: int) -> wp.vec3:
+    """L with only ``channel`` kept (-1: all three, grey extinction traced them together)."""
+    if channel >= 0:
+        mask = wp.vec3(0.0)
+        mask[channel] = 1.0
+        return wp.cw_mul(L, mask)
+    return L
+
+
+@wp.func
+def jittered_ray(cam: RasterView, st: PathSettings, px: int, py: int, rng: wp.uint32):
+    """The camera ray through pixel (px, py): its centre, or a uniform point of it with
+    ``pixel_area``; and the generator's state after."""
+    jx = float(0.5)
+    jy = float(0.5)
+    if st.pixel_area != 0:
+        jx = wp.randf(rng)
+        jy = wp.randf(rng)
+    o, d = view_ray_at(cam, float(px) + jx, float(py) + jy)
+    return o, d, rng
+
+
+@wp.func
 def trace_path(cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Emitter), background: wp.vec3,
                st: PathSettings, px: int, py: int, rng: wp.uint32) -> wp.vec3:
     """One camera path through pixel (px, py) (its centre, or a uniform point of it with
@@ -252,12 +312,7 @@ def trace_path(cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Em
     a BRDF bounce, until ``max_events`` events or the path leaves; the background counts where it
     escapes. Returns the path's radiance estimate for the traced channel (all three with grey
     extinction)."""
-    jx = float(0.5)
-    jy = float(0.5)
-    if st.pixel_area != 0:
-        jx = wp.randf(rng)
-        jy = wp.randf(rng)
-    o, d = view_ray_at(cam, float(px) + jx, float(py) + jy)
+    o, d, rng = jittered_ray(cam, st, px, py, rng)
     c = wp.max(st.channel, 0)
     mu = m.majorant[c]
     exact = exact_media(m)
@@ -287,12 +342,8 @@ def trace_path(cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Em
             # and a point light: half the variance)
             if exact:
                 segment = wp.randi(rng)
-            span = Span()
-            span.o = o
-            span.d = d
-            span.ta = ta
-            span.tb = tb
-            L += wp.cw_mul(beta, segment_direct(m, s, lights, span, t, i, exact, c, wp.rand_init(segment, STREAM)))
+            L += wp.cw_mul(beta, segment_direct(m, s, lights, make_span(o, d, ta, tb), t, i, exact, c,
+                                                wp.rand_init(segment, STREAM)))
         if collided:
             events += 1
             x = o + t * d
@@ -312,10 +363,9 @@ def trace_path(cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Em
             mat = s.material[face]
             L += wp.cw_mul(beta, surface_direct(m, s, lights, p, nf, -d, mat, c, wp.rand_init(wp.randi(rng), STREAM), 0))
             # cosine-weighted bounce: weight f cos / pdf = pi f
-            r = wp.sqrt(wp.randf(rng))
-            phi = TWO_PI * wp.randf(rng)
-            tx, ty = orthonormal_basis(nf)
-            wi = wp.normalize(r * wp.cos(phi) * tx + r * wp.sin(phi) * ty + wp.sqrt(wp.max(0.0, 1.0 - r * r)) * nf)
+            u1 = wp.randf(rng)
+            u2 = wp.randf(rng)
+            wi = cosine_direction(nf, u1, u2)
             beta = wp.cw_mul(beta, brdf_eval(mat, nf, -d, wi)) * PI
             o = p + RAY_EPS * nf
             d = wi
@@ -331,11 +381,7 @@ def trace_path(cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Em
             if wp.randf(rng) >= q:
                 break
             beta = beta / q
-    if st.channel >= 0:
-        mask = wp.vec3(0.0)
-        mask[st.channel] = 1.0
-        L = wp.cw_mul(L, mask)
-    return L
+    return channel_only(L, st.channel)
 
 
 @wp.kernel
