@@ -381,14 +381,10 @@ def _one_line_warning(message, category, filename, lineno, line=None) -> str:
     return f"warpvol: warning: {message}\n"
 
 
-def main(argv: list[str] | None = None) -> int:
-    from warpvol import device
+def _render_command(sub, common) -> None:
+    """The `render` command's arguments."""
     from warpvol.api import technique_names
 
-    common = argparse.ArgumentParser(add_help=False)
-    common.add_argument("--verbose", action="store_true", help="also show Warp's and VTK's own messages")
-    parser = _Parser(prog="python -m warpvol", description="Participating media with NVIDIA Warp.")
-    sub = parser.add_subparsers(dest="command", required=True)
     r = sub.add_parser("render", parents=[common], help="render a scene file or a built-in scene to .exr / .png / .npy")
     r.add_argument("scene", help="a .toml scene file or a built-in scene name (see `scenes`)")
     r.add_argument("--technique", default="reference",
@@ -402,6 +398,10 @@ def main(argv: list[str] | None = None) -> int:
     r.add_argument("--timings", action="store_true", help="print per-stage times")
     _cluster_arguments(r, "split the reference's samples into passes on")
     r.set_defaults(func=cmd_render)
+
+
+def _bench_command(sub, common) -> None:
+    """The `bench` command's arguments."""
     b = sub.add_parser("bench", parents=[common], help="run a benchmark sweep, list them, or write their reports")
     b.add_argument("sweep", nargs="*", help="sweep names, or `report [SWEEP ...]` (see --list)")
     b.add_argument("--list", action="store_true", help="list the sweeps and whether they can run yet")
@@ -415,6 +415,10 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument("--out", default="results", help="results folder (default: results)")
     _cluster_arguments(b, "run the sweep's points as tasks on")
     b.set_defaults(func=cmd_bench)
+
+
+def _animate_command(sub, common) -> None:
+    """The `animate` command's arguments."""
     a = sub.add_parser("animate", parents=[common], help="render a camera orbit or dolly, or the lights going "
                                                          "round, as a GIF, an MP4 or a folder of PNG frames")
     a.add_argument("scene", help="a .toml scene file or a built-in scene name (see `scenes`)")
@@ -431,6 +435,9 @@ def main(argv: list[str] | None = None) -> int:
     a.add_argument("--set", action="append", metavar="KEY=VALUE", help="technique setting or scene key override")
     a.set_defaults(func=cmd_animate)
 
+
+def _view_command(sub, common) -> None:
+    """The `view` command's arguments."""
     v = sub.add_parser("view", parents=[common], help="look at a scene in pyvista: media, lights, surfaces, camera")
     v.add_argument("scene", help="a .toml scene file or a built-in scene name")
     v.add_argument("--screenshot", default=None, help="render off screen to this PNG instead of opening a window")
@@ -439,6 +446,10 @@ def main(argv: list[str] | None = None) -> int:
                    "(light_shafts: shadow-map depth surfaces, lit slice; rbf_propagation: OPV error per cell)")
     v.add_argument("--device", default=None, help="cpu | cuda (for --technique)")
     v.set_defaults(func=cmd_view)
+
+
+def _live_command(sub, common) -> None:
+    """The `live` command's arguments."""
     lv = sub.add_parser("live", parents=[common], help="a window whose image re-renders as you drag the camera "
                                                         "round (t: next technique, r: the reference)")
     lv.add_argument("scene", help="a .toml scene file or a built-in scene name")
@@ -450,6 +461,9 @@ def main(argv: list[str] | None = None) -> int:
     lv.add_argument("--set", action="append", metavar="KEY=VALUE", help="technique setting or scene key override")
     lv.set_defaults(func=cmd_live)
 
+
+def _demo_command(sub, common) -> None:
+    """The `demo` command's arguments."""
     e = sub.add_parser("demo", parents=[common], help="a real-time technique and the reference side by side, "
                        "with each one's time and error (the first thing to run)")
     e.add_argument("scene", nargs="?", default="hazy-sun", help="a scene file or built-in name (default: hazy-sun)")
@@ -458,16 +472,36 @@ def main(argv: list[str] | None = None) -> int:
     e.add_argument("--device", default=None, help=DEVICE_HELP)
     e.add_argument("--set", action="append", metavar="KEY=VALUE", help="scene key override, e.g. camera.width=320")
     e.set_defaults(func=cmd_demo)
+
+
+def _docs_command(sub, common) -> None:
+    """The `docs` command's arguments."""
     d = sub.add_parser("docs", parents=[common], help="write docs/scene-format.md and the generated tables of docs/ "
                        "and README from the code (--check: only say which are out of date)")
     d.add_argument("--root", default=".", help="the checkout (default: .)")
     d.add_argument("--check", action="store_true", help="write nothing; exit 1 if a page is out of date")
     d.set_defaults(func=cmd_docs)
+
+
+def _scenes_command(sub, common) -> None:
+    """The `scenes` command's arguments."""
     s = sub.add_parser("scenes", parents=[common],
                        help="list the built-in scenes, or print one (--toml: as a scene file)")
     s.add_argument("name", nargs="?", default=None, help="a built-in scene: its description, or with --toml its TOML")
     s.add_argument("--toml", action="store_true", help="print the scene as a TOML file to start your own from")
     s.set_defaults(func=cmd_scenes)
+
+
+def main(argv: list[str] | None = None) -> int:
+    from warpvol import device
+
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--verbose", action="store_true", help="also show Warp's and VTK's own messages")
+    parser = _Parser(prog="python -m warpvol", description="Participating media with NVIDIA Warp.")
+    sub = parser.add_subparsers(dest="command", required=True)
+    for add in (_render_command, _bench_command, _animate_command, _view_command, _live_command, _demo_command,
+                _docs_command, _scenes_command):
+        add(sub, common)
     args = parser.parse_args(argv)
     device.set_verbose(args.verbose)
     from warpvol.device import DeviceError
