@@ -362,43 +362,18 @@ class MediaBuffers:
                 n_table += len(values)
             phases.append(ph)
             albedo.append(m.albedo)
-            index.append(0)
-            center.append((0.0, 0.0, 0.0))
-            radius.append(0.0)
+            homogeneous = isinstance(m, HomogeneousMedium)
+            center.append(m.center if homogeneous else (0.0, 0.0, 0.0))
+            radius.append(m.radius if homogeneous else 0.0)
             lo, hi = medium_bounds(m) or (np.full(3, 1.0), np.full(3, -1.0))  # empty cloud: nothing hits it
             bmin.append(lo)
             bmax.append(hi)
             reach.append(medium_ball(m, lo, hi))
-            if isinstance(m, HomogeneousMedium):
-                kinds.append(int(BOX) if m.shape == "box" else int(SPHERE))
-                center[-1], radius[-1] = m.center, m.radius
-                sigma.append(m.sigma_t)
-                majorants.append(np.asarray(m.sigma_t))
-            elif isinstance(m, GridMedium):
-                kinds.append(int(GRID))
-                index[-1] = len(self.grids)
-                self.grids.append(grid_buffers(m, device))
-                sigma.append(m.sigma_t_scale)
-                majorants.append(self.grids[-1].bound * np.asarray(m.sigma_t_scale))  # = the largest sample
-            elif isinstance(m, RBFMedium) and self.baked[-1]:
-                kinds.append(int(GRID))
-                index[-1] = len(self.grids)
-                self.grids.append(baked_rbf_grid(m, lo, hi, self.baked[-1], device))
-                sigma.append(tuple(m.peak))
-                majorants.append(self.grids[-1].bound * np.asarray(m.peak))
-            elif isinstance(m, RBFMedium):
-                kinds.append(int(RBF))
-                index[-1] = len(self.gaussians)
-                buffers, bound = gaussian_buffers(m, device)
-                self.gaussians.append(buffers)
-                sigma.append(tuple(m.peak))
-                majorants.append(bound * np.asarray(m.peak))
-            else:
-                kinds.append(int(PARTICLES))
-                index[-1] = len(self.clouds)
-                self.clouds.append(particle_buffers([m], device))  # a cloud of its own
-                sigma.append(tuple(m.sigma_t))
-                majorants.append(particle_majorant(m.positions, m.radius) * np.asarray(m.sigma_t))
+            kind, i, sig, majorant = self._kind_buffers(m, lo, hi, self.baked[-1], device)
+            kinds.append(kind)
+            index.append(i)
+            sigma.append(sig)
+            majorants.append(majorant)
         count = len(kinds)
         self.device = device
         f3 = lambda rows: wp.array(np.asarray(rows, np.float32).reshape(-1, 3) if rows else np.zeros((1, 3), np.float32), dtype=wp.vec3, device=device)  # noqa: E731
@@ -425,6 +400,26 @@ class MediaBuffers:
         self.struct = s
         #: Extinction is the same in R, G and B everywhere: one distance sampling serves all three.
         self.grey = all(abs(v[0] - v[1]) < 1e-12 and abs(v[0] - v[2]) < 1e-12 for v in sigma)
+
+    def _kind_buffers(self, m, lo: np.ndarray, hi: np.ndarray, baked: int, device):
+        """Medium ``m``'s kind and its kind's buffers, appended to ``grids`` (a grid, or an RBF
+        medium baked to ``baked`` cells), ``gaussians`` or ``clouds``: (kind, its index in that
+        list, its extinction scale, its majorant)."""
+        if isinstance(m, HomogeneousMedium):
+            return int(BOX) if m.shape == "box" else int(SPHERE), 0, m.sigma_t, np.asarray(m.sigma_t)
+        if isinstance(m, GridMedium):
+            self.grids.append(grid_buffers(m, device))
+            return int(GRID), len(self.grids) - 1, m.sigma_t_scale, self.grids[-1].bound * np.asarray(m.sigma_t_scale)
+        if isinstance(m, RBFMedium) and baked:
+            self.grids.append(baked_rbf_grid(m, lo, hi, baked, device))
+            return int(GRID), len(self.grids) - 1, tuple(m.peak), self.grids[-1].bound * np.asarray(m.peak)
+        if isinstance(m, RBFMedium):
+            buffers, bound = gaussian_buffers(m, device)
+            self.gaussians.append(buffers)
+            return int(RBF), len(self.gaussians) - 1, tuple(m.peak), bound * np.asarray(m.peak)
+        self.clouds.append(particle_buffers([m], device))  # a cloud of its own
+        return (int(PARTICLES), len(self.clouds) - 1, tuple(m.sigma_t),
+                particle_majorant(m.positions, m.radius) * np.asarray(m.sigma_t))
 
 
 def _union(bmin, bmax, mask):
