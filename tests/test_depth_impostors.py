@@ -140,7 +140,7 @@ def test_blocks_of_one_particle_render_as_particles(device):
 
 
 def test_morton_groups_partition_the_cloud_into_compact_blocks():
-    from warpvol.techniques.depth_impostors import morton_groups
+    from warpvol.techniques.depth_impostors.blocks import morton_groups
 
     pos = wv.load_scene("particle-cloud").media[0].positions
     groups = morton_groups(pos, 32)
@@ -219,7 +219,7 @@ def test_sky_light_of_a_thin_cloud_is_albedo_times_sky(device):
         r.render()
         t = r.technique
         if settings["cluster"] == 1:
-            rad = t.particle_radiance.numpy()[: t.n_instances, 0]
+            rad = t.particle_radiance.numpy()[: t.layout.n_instances, 0]
         else:
             alpha = t.impostors.alpha.numpy()[:, 0]
             rad = t.texel_radiance.numpy()[: len(alpha), 0][alpha > 0]

@@ -7,7 +7,8 @@ import pytest
 
 import warpvol as wv
 from warpvol.physics.sphere import fibonacci_directions
-from warpvol.techniques.illumination_network import doubly_stochastic, window_rule
+from warpvol.techniques.illumination_network.weights import doubly_stochastic
+from warpvol.techniques.illumination_network.window import window_rule
 
 SKY = [0.3, 0.4, 0.6]
 
@@ -285,7 +286,7 @@ def test_refreshing_k_directions_a_frame_catches_up_with_a_full_rebuild(device):
 def phase_matrix(r):
     """The technique's D x D phase matrix (the weights the iteration applies), float64."""
     t = r.technique
-    return t.P.numpy().reshape(t.Dp, t.Dp).astype(np.float64)[: t.D, : t.D]
+    return t.phase_weights.numpy().reshape(t.Dp, t.Dp).astype(np.float64)[: t.D, : t.D]
 
 
 def hg(g, c):

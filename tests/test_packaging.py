@@ -102,3 +102,19 @@ def test_every_kernel_follows_the_launch_convention():
     bad += [f"{p.relative_to(root.parent)}: wp.launch outside device.py" for p in root.rglob("*.py")
             if p.name != "device.py" and "wp.launch(" in p.read_text()]
     assert not bad, "\n".join(bad)
+
+
+def test_every_kernel_module_is_registered_and_built_for_cuda():
+    """A module with kernels calls ``device.kernel_module(__name__)`` (warpvol's module options,
+    and the list ``bench.cuda_compile`` builds for CUDA), and importing the techniques imports it:
+    else CI's CUDA build would pass over it and it could stop building unseen."""
+    import warpvol as wv
+    from warpvol import device
+
+    for name in wv.technique_names():
+        wv.technique_class(name)
+    files = sorted({str(path) for path, _ in _kernels()})
+    modules = {f.removesuffix(".py").removesuffix("/__init__").replace("/", ".") for f in files}
+    assert len(modules) > 10
+    unregistered = sorted(modules - set(device.KERNEL_MODULES))
+    assert not unregistered, f"kernel modules not registered by importing the techniques: {unregistered}"

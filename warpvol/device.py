@@ -17,6 +17,7 @@ import contextlib
 import os
 import sys
 import threading
+import weakref
 from concurrent.futures import ThreadPoolExecutor
 
 import warp as wp
@@ -28,10 +29,17 @@ import warp as wp
 KERNEL_OPTIONS = {"enable_backward": False}
 
 
+#: Every warpvol module that defines kernels, as it was imported (``kernel_module``): what
+#: ``bench.cuda_compile`` builds for CUDA.
+KERNEL_MODULES: list[str] = []
+
+
 def kernel_module(name: str) -> None:
     """Give the Warp module ``name`` (a Python module's ``__name__``, where its kernels are
     defined) warpvol's ``KERNEL_OPTIONS``; a user's own Warp modules keep Warp's defaults."""
     wp.set_module_options(KERNEL_OPTIONS, module=name)
+    if name not in KERNEL_MODULES:
+        KERNEL_MODULES.append(name)
 
 
 class DeviceError(ValueError):
@@ -171,10 +179,36 @@ def launch(kernel, dim: int, inputs: list, device: str, split: bool = True, min_
 
 
 _scratch_pool: dict = {}
+_scratch_users = 0
+_scratch_lock = threading.Lock()
 
 #: The largest per-core copy kept between launches, in bytes: a larger one (a big light map) is made
-#: for its launch and freed after, so the pool does not hold it for the life of the process.
+#: for its launch and freed after. The pool holds one buffer per (device, type, core), each at most
+#: this size, and frees them all when the last Renderer that used it is collected (``scratch_user``).
 SCRATCH_KEEP = 32 << 20
+
+
+def scratch_user(owner) -> None:
+    """Count ``owner`` (a Renderer) among the scratch pool's users until it is collected; when the
+    last one is, the pool's buffers are freed (a process that renders once does not keep them)."""
+    global _scratch_users
+    with _scratch_lock:
+        _scratch_users += 1
+    weakref.finalize(owner, _scratch_user_gone)
+
+
+def _scratch_user_gone() -> None:
+    global _scratch_users
+    with _scratch_lock:
+        _scratch_users -= 1
+        if _scratch_users <= 0:
+            _scratch_users = 0
+            _scratch_pool.clear()
+
+
+def scratch_bytes() -> int:
+    """Bytes the scratch pool holds now."""
+    return sum(b.capacity for b in _scratch_pool.values())
 
 
 def _scratch(out, k: int):

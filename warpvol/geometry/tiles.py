@@ -81,18 +81,25 @@ def sphere_seen_from(rel: wp.vec3, r: float):
     return dist, sin_b, wp.sqrt(wp.max(1.0 - sin_b * sin_b, 0.0))
 
 
+@wp.struct
+class Spheres:
+    """The spheres to bin: centres and radii."""
+
+    centres: wp.array(dtype=wp.vec3)
+    radius: wp.array(dtype=float)
+
+
 @wp.kernel
-def sphere_tile_rect(offset: int, cam: RasterView, centres: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float),
-                     tiles_x: int, tiles_y: int, cones: wp.array(dtype=wp.vec4), rect: wp.array(dtype=wp.vec4i),
-                     count: wp.array(dtype=int)):
+def sphere_tile_rect(offset: int, cam: RasterView, spheres: Spheres, tiles_x: int, tiles_y: int,
+                     cones: wp.array(dtype=wp.vec4), rect: wp.array(dtype=wp.vec4i), count: wp.array(dtype=int)):
     """Tiles [x0, x1) x [y0, y1) sphere p's projection may touch (a perspective camera view), and how
     many of them ``tile_meets_sphere``."""
     p = wp.tid() + offset
     kx = wp.length(cam.right)
     ky = wp.length(cam.up)
-    rel = centres[p] - cam.origin
+    rel = spheres.centres[p] - cam.origin
     z = wp.dot(rel, cam.fwd)
-    r = radius[p]
+    r = spheres.radius[p]
     x0 = int(0)
     x1 = tiles_x
     y0 = int(0)
@@ -121,15 +128,15 @@ def sphere_tile_rect(offset: int, cam: RasterView, centres: wp.array(dtype=wp.ve
 
 
 @wp.kernel
-def sphere_tile_pairs(offset: int, cam: RasterView, centres: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float),
-                      cones: wp.array(dtype=wp.vec4), rect: wp.array(dtype=wp.vec4i), start: wp.array(dtype=int),
-                      tiles_x: int, z_far: float, keys: wp.array(dtype=wp.int64), values: wp.array(dtype=int)):
+def sphere_tile_pairs(offset: int, cam: RasterView, spheres: Spheres, cones: wp.array(dtype=wp.vec4),
+                      rect: wp.array(dtype=wp.vec4i), start: wp.array(dtype=int), tiles_x: int, z_far: float,
+                      keys: wp.array(dtype=wp.int64), values: wp.array(dtype=int)):
     """Key tile << 32 | depth for every (tile, sphere) pair of sphere p: the tiles of its
     rectangle that ``tile_meets_sphere``, as ``sphere_tile_rect`` counted them."""
     p = wp.tid() + offset
     b = rect[p]
-    rel = centres[p] - cam.origin
-    dist, sin_b, cos_b = sphere_seen_from(rel, radius[p])
+    rel = spheres.centres[p] - cam.origin
+    dist, sin_b, cos_b = sphere_seen_from(rel, spheres.radius[p])
     depth = wp.clamp(wp.dot(rel, cam.fwd) / z_far, 0.0, 1.0)
     q = wp.int64(depth * float(SPLAT_DEPTH - wp.int64(1)))
     k = start[p]
@@ -181,14 +188,16 @@ def bin_spheres(cam: RasterView, centres: wp.array, radius: wp.array, z_far: flo
     dev.launch(tile_cones, tx * ty, [cam, tx, cones], device)
     rect = wp.empty(n, dtype=wp.vec4i, device=device)
     count = wp.empty(n, dtype=int, device=device)
-    dev.launch(sphere_tile_rect, n, [cam, centres, radius, tx, ty, cones, rect, count], device, min_split=4096)
+    spheres = Spheres()
+    spheres.centres, spheres.radius = centres, radius
+    dev.launch(sphere_tile_rect, n, [cam, spheres, tx, ty, cones, rect, count], device, min_split=4096)
     start = wp.empty(n, dtype=int, device=device)
     wp.utils.array_scan(count, start, inclusive=False)
     total = int(start.numpy()[-1] + count.numpy()[-1])
     if total:
         keys = wp.empty(2 * total, dtype=wp.int64, device=device)
         tl.values = wp.empty(2 * total, dtype=int, device=device)
-        dev.launch(sphere_tile_pairs, n, [cam, centres, radius, cones, rect, start, tx, z_far, keys, tl.values], device,
+        dev.launch(sphere_tile_pairs, n, [cam, spheres, cones, rect, start, tx, z_far, keys, tl.values], device,
                    min_split=4096)
         wp.utils.radix_sort_pairs(keys, tl.values, total)
         dev.launch(tile_ranges, total, [keys, total, tl.first, tl.last], device)

@@ -1,5 +1,5 @@
 """docs/scene-format.md, written from the loader itself: every example scene below is loaded
-with ``load.RECORD`` on, so each key's type, allowed range and default are the ones the loader
+with ``tables.RECORD`` on, so each key's type, allowed range and default are the ones the loader
 checks; what a key means and its units come from ``MEANING``, which must name every key the
 loader reads (``tests/test_docs.py`` fails otherwise, and when the checked-in page differs).
 
@@ -13,8 +13,8 @@ import tempfile
 
 import numpy as np
 
-from . import load
-from .load import REQUIRED
+from . import load, tables
+from .tables import REQUIRED
 
 #: (table, key) -> what it is, with units. Table is the key's place with list indices dropped
 #: ("media.phase"); a key whose meaning depends on the variant is keyed (table, key, variant).
@@ -148,14 +148,14 @@ def recorded_keys() -> list[tuple]:
     """(table, variants, key, kind, default, allowed) of every key the loader reads, in the
     order it first reads them; variants: "all" where every variant of the table reads the key,
     else those that do (a key whose meaning differs by variant: one row per variant)."""
-    load.RECORD = []
+    tables.RECORD = []
     try:
         with tempfile.TemporaryDirectory() as folder:
             for scene in _examples(folder):
                 load.scene_from_dict(scene, os.path.join(folder, "example.toml"), folder)
-        record = list(load.RECORD)
+        record = list(tables.RECORD)
     finally:
-        load.RECORD = None
+        tables.RECORD = None
     rows, variants = {}, {}
     for where, variant, key, kind, default, allowed in record:
         table = ".".join(part.split("[")[0] for part in where.split(".")) if where else ""

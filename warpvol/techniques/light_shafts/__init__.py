@@ -79,37 +79,30 @@ stages ``multiple`` and ``multiple_view``) and read at each of a pixel's interle
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import warp as wp
 
-from .. import device as dev
-from ..geometry.camera import RasterView, camera_view, pixel_ray, view_ray
-from ..geometry.intersect import ray_box
-from ..geometry.mesh import Surfaces, surface_hit
-from ..geometry.raster import NO_HIT, key_hit, rasterise_visible, split_long_edges, triangle_at
-from ..geometry.shadowmap import (
-    ShadowedLights,
-    ShadowMap,
-    shadow_map_depths,
-    texel_ray,
-    texels,
-)
-from ..media.volume import Media, homogeneous_optical_depth, in_scatter_at, scattering_at, sigma_t_at
-from ..physics.constants import INF, RAY_EPS
-from ..physics.lights import (Emitter, angle_point, angle_samples, angle_share, ball_chord, step_angle,
-                              step_mean_irradiance)
-from ..physics.transmittance import transmittance_rgb
-from ..pipeline import Bias, Quality, Setting, Stage, Technique
-from ..scattering import BIASES as MS_BIASES
-from ..scattering import SETTINGS as MS_SETTINGS
-from ..scattering import MultipleScattering, ScatteredLight, scattered_light, scattered_on_surface
-from ..scattering import check_settings as check_ms_settings
-from ..scattering import leaves_out as ms_leaves_out
-from ..shading import LightDepthVolume, light_arriving, marched_optical_depth, surface_through_maps
-from ..upload import (EXTINCTION_BIAS, EXTINCTION_SETTINGS, LIGHT_VOLUME_BIAS, LIGHT_VOLUME_SETTINGS, SceneUploads,
-                      pinhole, scene_bounds, shadow_map_structs)
+from ... import device as dev
+from ...geometry.camera import RasterView, camera_view, pixel_ray, view_ray
+from ...geometry.intersect import ray_box
+from ...geometry.mesh import Surfaces, surface_hit
+from ...geometry.raster import NO_HIT, key_hit, rasterise_visible, triangle_at
+from ...geometry.shadowmap import ShadowedLights, ShadowMap, texel_ray, texels
+from ...media.volume import Media, homogeneous_optical_depth, in_scatter_at, scattering_at, sigma_t_at
+from ...physics.constants import INF, RAY_EPS
+from ...physics.lights import (Emitter, angle_point, angle_samples, angle_share, ball_chord, step_angle,
+                               step_mean_irradiance)
+from ...physics.transmittance import transmittance_rgb
+from ...pipeline import Bias, Quality, Setting
+from ...scattering import BIASES as MS_BIASES
+from ...scattering import SETTINGS as MS_SETTINGS
+from ...scattering import ScatteredLight, scattered_light, scattered_on_surface
+from ...shading import light_arriving, marched_optical_depth, surface_through_maps
+from ...upload import EXTINCTION_BIAS, EXTINCTION_SETTINGS, LIGHT_VOLUME_BIAS, LIGHT_VOLUME_SETTINGS, pinhole
+from .buffers import tiled
+from .parameters import ShaftSettings, SurfacePass, shaft_settings, surface_pass
+from .stages import ShaftStages
+from .view_geometry import far_distance, slice_plane
 
 dev.kernel_module(__name__)
 
@@ -131,9 +124,10 @@ SETTINGS = {
                             "for GPUs); 0: one per triangle; -1: pieces on CUDA, triangles on the CPU",
                             names=("auto", "triangles", "pieces")),
     "edges": Setting(1, 0, 1, "1: the block sum keeps to neighbours at a similar depth and rescales for the samples it "
-                     "leaves out (no halo at depth jumps; its error there and its cost: results/light-shafts-edges); 0: "
-                     "the paper's plain separable sum"),
-    "edge_tolerance": Setting(0.1, 0.0, 10.0, "edges = 1: relative depth difference beyond which a neighbour is left out"),
+                     "leaves out (no halo at depth jumps; its error there and its cost: results/light-shafts-edges); "
+                     "0: the paper's plain separable sum"),
+    "edge_tolerance": Setting(0.1, 0.0, 10.0,
+                              "edges = 1: relative depth difference beyond which a neighbour is left out"),
     "light_ball": Setting(4.0, 0.0, 64.0, "radius, in M-pixel blocks at the light's distance, of the ball around each "
                           "point or spot light inside which every pixel marches its own ray at equiangular points "
                           "instead of sharing the block's samples (the light's peak stays in its pixel); 0: the "
@@ -145,16 +139,13 @@ SETTINGS = {
 
 
 @wp.struct
-class ShaftSettings:
-    steps: int
-    block: int
-    jitter: int
-    scattering: int
-    shadow_steps: int
-    seed: int
-    spacing: int
-    has_depth: int  # 0 when the scene has no surfaces (depth pass skipped)
-    near: float  # a point or spot light's ball, marched per pixel: its radius per unit distance from the camera
+class ShaftTerms:
+    """Per pixel, what the march writes for the block sum: the surface term L0 exp(-tau s) (from
+    the surface pass; without surfaces, the attenuated background), this pixel's share of the
+    interleaved in-scattering sum, and its own in-scattering inside the lights' balls."""
+    surface: wp.array(dtype=wp.vec3)
+    partial: wp.array(dtype=wp.vec3)
+    own: wp.array(dtype=wp.vec3)
 
 
 @wp.struct
@@ -197,25 +188,24 @@ def view_segments(offset: int, cam: RasterView, m: Media, s: Surfaces, source: i
 
 @wp.kernel
 def shade_visible_surface(offset: int, cam: RasterView, m: Media, s: Surfaces, sl: ShadowedLights,
-                          vis: VisibleSurface, shadow_steps: int, view_steps: int, background: wp.vec3,
-                          ms: ScatteredLight, radiance: wp.array(dtype=wp.vec3)):
+                          vis: VisibleSurface, sp: SurfacePass, ms: ScatteredLight, radiance: wp.array(dtype=wp.vec3)):
     """The paper's step 1: the radiance the visible surface reflects (direct light through the
     shadow maps and the media), then its part of equation 1, L0 exp(-tau s): attenuated along
-    the view ray (heterogeneous media by ``view_steps`` midpoints, as the march). Pixels without
-    a surface take the attenuated ``background``."""
+    the view ray (heterogeneous media by ``sp.view_steps`` midpoints, as the march). Pixels
+    without a surface take the attenuated ``sp.background``."""
     tid = wp.tid() + offset
     o, d = pixel_ray(cam, tid)
     f = vis.face[tid]
     t = wp.where(f >= 0, vis.t_hit[tid], vis.segs[tid][2])  # the surface, or where the view leaves the media
-    tau_v = marched_optical_depth(m, o, d, 0.0, t, view_steps)
-    L = wp.cw_mul(background, transmittance_rgb(tau_v))
+    tau_v = marched_optical_depth(m, o, d, 0.0, t, sp.view_steps)
+    L = wp.cw_mul(sp.background, transmittance_rgb(tau_v))
     if f >= 0:
         L = wp.vec3(0.0)
         a, b, c = triangle_at(vis.points, vis.indices, f)
         n = wp.normalize(wp.cross(b - a, c - a))
         n = wp.where(wp.dot(n, d) < 0.0, n, -n)
         p = o + t * d + RAY_EPS * n
-        L = surface_through_maps(m, sl, p, n, -d, s.material[f], tau_v, shadow_steps)
+        L = surface_through_maps(m, sl, p, n, -d, s.material[f], tau_v, sp.shadow_steps)
         L += wp.cw_mul(transmittance_rgb(tau_v), scattered_on_surface(ms, s, s.material[f], p, n, -d))
     radiance[tid] = L
 
@@ -262,15 +252,91 @@ def near_light(m: Media, sl: ShadowedLights, l: int, o: wp.vec3, d: wp.vec3, ta:
     return acc
 
 
+@wp.func
+def own_in_scatter(m: Media, sl: ShadowedLights, o: wp.vec3, d: wp.vec3, ta: float, tb: float,
+                   st: ShaftSettings) -> wp.vec3:
+    """What a pixel takes from no neighbour: the in-scattering of every point or spot light inside
+    its ball (``near_light``), which the shared samples skip."""
+    own = wp.vec3(0.0)
+    for l in range(sl.lights.shape[0]):
+        chord = pixel_ball(sl.lights[l], o, d, st.near)
+        own += near_light(m, sl, l, o, d, ta, tb, chord, st.shadow_steps, st.steps)
+    return own
+
+
+@wp.func
+def add_sample(acc: wp.vec3, m: Media, sl: ShadowedLights, ms: ScatteredLight, o: wp.vec3, d: wp.vec3, c0: float,
+               w: float, x: wp.vec3, tau_v: wp.vec3, st: ShaftSettings) -> wp.vec3:
+    """``acc`` plus one shared sample's terms: at x, in the cell [c0, c0 + w] of the view ray,
+    optical depth ``tau_v`` from the camera, each light's in-scattering over the part of the cell
+    outside its ball (the ball is the pixel's own, ``near_light``), a point light's 1/d^2
+    averaged over the cell, then the light scattered more than once."""
+    total = acc
+    for l in range(sl.lights.shape[0]):
+        chord = pixel_ball(sl.lights[l], o, d, st.near)
+        w_l = outside_ball(c0, w, chord)
+        if w_l > 0.0:
+            wi, e, tau = light_arriving(m, sl, l, x, wp.vec3(0.0), st.shadow_steps)
+            if e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0:
+                e = step_mean_irradiance(sl.lights[l], e, wp.length(sl.lights[l].position - x), o, d,
+                                         c0, c0 + w)  # a point light's 1/d^2 averaged over the cell
+                li = wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e)
+                total += wp.cw_mul(transmittance_rgb(tau_v + tau), li) * w_l
+    if ms.lat.n > 0:
+        total += wp.cw_mul(transmittance_rgb(tau_v), scattered_light(ms, scattering_at(m, x), x)) * w
+    return total
+
+
+@wp.func
+def homogeneous_samples(m: Media, sl: ShadowedLights, ms: ScatteredLight, o: wp.vec3, d: wp.vec3, ta: float,
+                        tb: float, dl: float, k0: int, u: float, st: ShaftSettings) -> wp.vec3:
+    """The sum of a pixel's samples k = k0, k0 + M^2, ... (cells of length ``dl`` from ``ta``, cut
+    at ``tb``; a sample at ``u`` of its cell) in closed-form media."""
+    acc = wp.vec3(0.0)
+    for k in range(k0, st.steps, st.block * st.block):
+        c0 = ta + float(k) * dl  # this sample's cell, cut at the surface
+        if c0 >= tb:
+            break
+        w = wp.min(1.0, (tb - c0) / dl) * dl
+        lk = c0 + u * w
+        x = o + lk * d
+        tau_v = homogeneous_optical_depth(m, o, d, 0.0, lk)
+        acc = add_sample(acc, m, sl, ms, o, d, c0, w, x, tau_v, st)
+    return acc
+
+
+@wp.func
+def heterogeneous_samples(m: Media, sl: ShadowedLights, ms: ScatteredLight, o: wp.vec3, d: wp.vec3, ta: float,
+                          tb: float, dl: float, k0: int, u: float, st: ShaftSettings):
+    """``homogeneous_samples`` where a medium is a grid: the optical depth from the camera is
+    accumulated at every one of the N steps, the lights are summed at this pixel's samples only.
+    Returns (the sum, the optical depth from the camera to ``tb``)."""
+    stride = st.block * st.block
+    acc = wp.vec3(0.0)
+    tau = homogeneous_optical_depth(m, o, d, 0.0, ta)
+    for k in range(st.steps):
+        c0 = ta + float(k) * dl
+        if c0 >= tb:
+            break
+        w = wp.min(1.0, (tb - c0) / dl) * dl
+        lk = c0 + u * w
+        x = o + lk * d
+        sig = sigma_t_at(m, x, True)
+        if k % stride == k0:
+            tau_v = tau + homogeneous_optical_depth(m, o, d, ta, lk) + sig * (u * w)
+            acc = add_sample(acc, m, sl, ms, o, d, c0, w, x, tau_v, st)
+        tau += sig * w
+    return acc, tau
+
+
 @wp.kernel
 def march_shafts(offset: int, cam: RasterView, m: Media, sl: ShadowedLights, segs: wp.array(dtype=wp.vec3),
-                 background: wp.vec3, st: ShaftSettings, ms: ScatteredLight, surface_out: wp.array(dtype=wp.vec3),
-                 partial_out: wp.array(dtype=wp.vec3), own_out: wp.array(dtype=wp.vec3)):
-    """This pixel's share of the in-scattering sum (its samples k = k0, k0 + M^2, ...), and into
-    ``own_out`` what it takes from no neighbour: each point or spot light's in-scattering inside
-    the light's ball (``near_light``; the shared samples skip it). With surfaces, the surface
-    term was attenuated by the surface pass; without, the background is attenuated here into
-    ``surface_out``."""
+                 background: wp.vec3, st: ShaftSettings, ms: ScatteredLight, out: ShaftTerms):
+    """This pixel's share of the in-scattering sum (its samples k = k0, k0 + M^2, ...) into
+    ``out.partial``, and into ``out.own`` what it takes from no neighbour: each point or spot
+    light's in-scattering inside the light's ball (``near_light``; the shared samples skip it).
+    With surfaces, the surface term was attenuated by the surface pass; without, the background
+    is attenuated here into ``out.surface``."""
     tid = wp.tid() + offset
     px = tid % cam.width
     py = tid / cam.width
@@ -283,15 +349,11 @@ def march_shafts(offset: int, cam: RasterView, m: Media, sl: ShadowedLights, seg
     background_done = bool(False)
     own = wp.vec3(0.0)
     if ta < tb and st.scattering == 1:
-        for l in range(sl.lights.shape[0]):
-            chord = pixel_ball(sl.lights[l], o, d, st.near)
-            own += near_light(m, sl, l, o, d, ta, tb, chord, st.shadow_steps, st.steps)
+        own = own_in_scatter(m, sl, o, d, ta, tb, st)
         t_end = tb  # where the samples are spread: up to the surface (paper) or through the media
         if st.spacing == 1:
             t_end = b
-        n_steps = st.steps
-        dl = (t_end - ta) / float(n_steps)
-        stride = st.block * st.block
+        dl = (t_end - ta) / float(st.steps)
         k0 = px % st.block + st.block * (py % st.block)
         u = 0.5
         if st.jitter == 1:
@@ -299,60 +361,17 @@ def march_shafts(offset: int, cam: RasterView, m: Media, sl: ShadowedLights, seg
             u = wp.randf(rng)
         hetero = m.het_majorant[0] > 0.0 or m.het_majorant[1] > 0.0 or m.het_majorant[2] > 0.0
         if not hetero:
-            for k in range(k0, n_steps, stride):
-                c0 = ta + float(k) * dl  # this sample's cell, cut at the surface
-                if c0 >= tb:
-                    break
-                w = wp.min(1.0, (tb - c0) / dl) * dl
-                lk = c0 + u * w
-                x = o + lk * d
-                tau_v = homogeneous_optical_depth(m, o, d, 0.0, lk)
-                for l in range(sl.lights.shape[0]):
-                    chord = pixel_ball(sl.lights[l], o, d, st.near)
-                    w_l = outside_ball(c0, w, chord)  # the ball is the pixel's own (near_light)
-                    if w_l > 0.0:
-                        wi, e, tau = light_arriving(m, sl, l, x, wp.vec3(0.0), st.shadow_steps)
-                        if e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0:
-                            e = step_mean_irradiance(sl.lights[l], e, wp.length(sl.lights[l].position - x), o, d,
-                                                     c0, c0 + w)  # a point light's 1/d^2 averaged over the cell
-                            li = wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e)
-                            acc += wp.cw_mul(transmittance_rgb(tau_v + tau), li) * w_l
-                if ms.lat.n > 0:
-                    acc += wp.cw_mul(transmittance_rgb(tau_v), scattered_light(ms, scattering_at(m, x), x)) * w
+            acc = homogeneous_samples(m, sl, ms, o, d, ta, tb, dl, k0, u, st)
         else:
-            # optical depth from the camera, accumulated at every step; lights only at this pixel's
-            tau = homogeneous_optical_depth(m, o, d, 0.0, ta)
-            for k in range(n_steps):
-                c0 = ta + float(k) * dl
-                if c0 >= tb:
-                    break
-                w = wp.min(1.0, (tb - c0) / dl) * dl
-                lk = c0 + u * w
-                x = o + lk * d
-                sig = sigma_t_at(m, x, True)
-                if k % stride == k0:
-                    tau_v = tau + homogeneous_optical_depth(m, o, d, ta, lk) + sig * (u * w)
-                    for l in range(sl.lights.shape[0]):
-                        chord = pixel_ball(sl.lights[l], o, d, st.near)
-                        w_l = outside_ball(c0, w, chord)
-                        if w_l > 0.0:
-                            wi, e, tau_l = light_arriving(m, sl, l, x, wp.vec3(0.0), st.shadow_steps)
-                            if e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0:
-                                e = step_mean_irradiance(sl.lights[l], e, wp.length(sl.lights[l].position - x), o,
-                                                         d, c0, c0 + w)
-                                li = wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e)
-                                acc += wp.cw_mul(transmittance_rgb(tau_v + tau_l), li) * w_l
-                    if ms.lat.n > 0:
-                        acc += wp.cw_mul(transmittance_rgb(tau_v), scattered_light(ms, scattering_at(m, x), x)) * w
-                tau += sig * w
+            acc, tau = heterogeneous_samples(m, sl, ms, o, d, ta, tb, dl, k0, u, st)
             if st.has_depth == 0:  # the background through the optical depth this march summed
                 tau += homogeneous_optical_depth(m, o, d, ta, tb)
-                surface_out[tid] = wp.cw_mul(background, transmittance_rgb(tau))
+                out.surface[tid] = wp.cw_mul(background, transmittance_rgb(tau))
                 background_done = True
     if st.has_depth == 0 and not background_done:
-        surface_out[tid] = wp.cw_mul(background, transmittance_rgb(marched_optical_depth(m, o, d, 0.0, b, st.steps)))
-    partial_out[tid] = acc
-    own_out[tid] = own
+        out.surface[tid] = wp.cw_mul(background, transmittance_rgb(marched_optical_depth(m, o, d, 0.0, b, st.steps)))
+    out.partial[tid] = acc
+    out.own[tid] = own
 
 
 @wp.kernel
@@ -431,8 +450,8 @@ def shadow_hit_points(offset: int, sm: ShadowMap, depth: wp.array(dtype=float), 
 
 
 @wp.kernel
-def sample_lit_slice(offset: int, m: Media, sl: ShadowedLights, corner: wp.vec3, edge_u: wp.vec3, edge_v: wp.vec3, res: int,
-                     view: wp.vec3, shadow_steps: int, out: wp.array(dtype=wp.vec3)):
+def sample_lit_slice(offset: int, m: Media, sl: ShadowedLights, corner: wp.vec3, edge_u: wp.vec3, edge_v: wp.vec3,
+                     res: int, view: wp.vec3, shadow_steps: int, out: wp.array(dtype=wp.vec3)):
     """Radiance scattered per unit length toward a camera looking along ``view``, sum_l sigma_s p E v T,
     on a plane (the same phase angle as the march: cos = view . wi)."""
     tid = wp.tid() + offset
@@ -444,7 +463,7 @@ def sample_lit_slice(offset: int, m: Media, sl: ShadowedLights, corner: wp.vec3,
     out[tid] = li
 
 
-class LightShafts(Technique):
+class LightShafts(ShaftStages):
     """Shadow-mapped single scattering with interleaved sampling (see the module docstring)."""
 
     NAME = NAME
@@ -454,135 +473,22 @@ class LightShafts(Technique):
                               EXTINCTION_BIAS, LIGHT_VOLUME_BIAS))
     LEAVES_OUT = ()
 
-    def __init__(self, scene, device, settings, progress=False):
-        super().__init__(scene, device, settings, progress)
-        self.uploads = SceneUploads(self)
-        self.multiple = MultipleScattering(self, lambda: self.uploads.surfaces, lambda: self.uploads.lights,
-                                           lambda: self.uploads.media.struct)
-        self.maps = None
-        self.light_volume = LightDepthVolume(self, lambda: self.uploads.media.struct, lambda: self.uploads.lights)
-        self.depth = wp.full(1, INF, dtype=float, device=device)
-        self._no_keys = wp.full(1, NO_HIT, dtype=wp.int64, device=device)  # "ray cast instead"
-        self._no_index = wp.full(1, -1, dtype=int, device=device)
-        self._no_points = wp.zeros(1, dtype=wp.vec3, device=device)
-        self.segs = self.face = None
-        self._arrays = {}
-        self._raster_source = self._raster_mesh = None
-        self.t_hit = self.radiance = None
-        self.surface = self.partial = self.own = self.rows = self.image = None
-
-    def check_settings(self, settings):
-        check_ms_settings(NAME, settings)
-
-    def leaves_out(self) -> list[str]:
-        return [*ms_leaves_out(self.settings), *super().leaves_out()]
-
-    def diagnostics(self) -> dict:
-        return {**self.multiple.diagnostics(), **self.uploads.diagnostics()}
-
-    def effective_block(self) -> int:
-        """M, limited to the image so a window always holds all M^2 residue classes."""
-        cam = self.scene.camera
-        return max(1, min(self.settings["block"], cam.width, cam.height))
-
-    def stages(self):
-        scene = self.scene
-        occluders = bool(scene.surfaces)
-        interleaved = self.effective_block() > 1 and self.settings["scattering"] == 1 and bool(scene.media)
-        depth_aware = self.settings["edges"] == 1 and occluders  # depth comes from the surface pass
-        return self.uploads.stages() + [
-            Stage("shadow_maps", self._shadow_maps, reads=("lights",),
-                  settings=("shadow_map_res", "depth_bias", "raster", "raster_tiles"),
-                  after=("surfaces", "lights"), needed=occluders and bool(scene.lights)),
-            Stage("visible", self._visible, reads=("camera",), settings=("raster", "raster_tiles"),
-                  after=("medium", "surfaces")),
-            *self.multiple.stages(after=("medium", "surfaces", "lights")),
-            self.light_volume.stage(),
-            Stage("surface", self._surface, reads=("camera", "background"),
-                  settings=("shadow_steps", "steps", "multiple_scattering", "shadow_grid"),
-                  after=("medium", "surfaces", "lights", "shadow_maps", "visible", "multiple_view", "light_volume"),
-                  needed=occluders),
-            Stage("march", self._march, reads=("camera", "background"),
-                  settings=("steps", "block", "jitter", "scattering", "shadow_steps", "seed", "spacing",
-                            "multiple_scattering", "light_ball", "shadow_grid"),
-                  after=("medium", "lights", "shadow_maps", "visible", "surface", "multiple_view", "light_volume")),
-            Stage("block_rows", self._block_rows, settings=("block",), after=("march",),
-                  needed=interleaved and not depth_aware),
-            Stage("block_cols", self._block_cols, settings=("block",), after=("block_rows",),
-                  needed=interleaved and not depth_aware),
-            Stage("block_edges", self._block_edges, settings=("block", "edge_tolerance"), after=("march",),
-                  needed=interleaved and depth_aware),
-        ]
-
-    def _map_structs(self, occluders: bool) -> list[ShadowMap]:
-        return shadow_map_structs(self.scene, self.settings["shadow_map_res"], self.settings["depth_bias"], occluders)
-
-    def _mesh_arrays(self):
-        """(points, indices, face of each triangle) of the triangles the rasteriser takes: the
-        surfaces with no edge longer than 1/32 of the scene's diagonal (``split_long_edges``),
-        rebuilt when the surfaces are uploaded again."""
-        buffers = self.uploads._surfaces
-        if self._raster_source is not buffers:
-            lo, hi = scene_bounds(self.scene)
-            pts, parent = split_long_edges(buffers.mesh.points.numpy(), buffers.mesh.indices.numpy(),
-                                           float(np.linalg.norm(hi - lo)) / 32.0)
-            self._raster_mesh = (wp.array(pts, dtype=wp.vec3, device=self.device),
-                                 wp.array(np.arange(len(pts), dtype=np.int32), dtype=int, device=self.device),
-                                 wp.array(parent, dtype=int, device=self.device))
-            self._raster_source = buffers
-        return self._raster_mesh
-
-    def _tiled(self) -> bool:
-        mode = self.settings["raster_tiles"]
-        return mode == 1 or (mode == -1 and str(self.device).startswith("cuda"))
-
-    def _shadow_maps(self):
-        structs = self._map_structs(occluders=True)
-        if self.settings["raster"]:
-            points, indices, _ = self._mesh_arrays()
-            self.depth = shadow_map_depths(structs, self.device, points, indices, tiled=self._tiled())
-        else:
-            self.depth = shadow_map_depths(structs, self.device, surfaces=self.uploads.surfaces)
-        self.maps = wp.array(structs, dtype=ShadowMap, device=self.device)
-
-    def _no_shadow_maps(self):
-        if not (self.scene.surfaces and self.scene.lights):  # no shadow pass: every map says "lit"
-            self.maps = wp.array(self._map_structs(occluders=False) or [ShadowMap()], dtype=ShadowMap,
-                                 device=self.device)
-
-    def _shadowed_lights(self) -> ShadowedLights:
-        sl = ShadowedLights()
-        sl.lights, sl.maps, sl.depth = self.uploads.lights, self.maps, self.depth
-        return self.light_volume.attach(sl)
-
-    def _scratch(self, name: str, n: int, dtype, fill=None):
-        """An intermediate array kept from frame to frame (allocating and first touching ~6 MB per
-        frame costs milliseconds on the CPU); ``fill`` resets it."""
-        arr = self._arrays.get(name)
-        if arr is None or arr.shape[0] != n:
-            arr = self._arrays[name] = wp.empty(n, dtype=dtype, device=self.device)
-        if fill is not None:
-            arr.fill_(fill)
-        return arr
-
     def _visible(self):
-        scene, cam, u = self.scene, self.scene.camera, self.uploads
+        scene, cam, u, buf = self.scene, self.scene.camera, self.uploads, self.buffers
         npix = cam.width * cam.height
         view = camera_view(pinhole(cam))
-        self.segs = self._scratch("segs", npix, wp.vec3)
-        keys = self._no_keys
-        points, indices, parent = self._no_points, self._no_index, self._no_index
-        t_hit, face = self.depth, self._no_index  # no surfaces: nothing to keep but the segments
+        self.segs = buf.scratch("segs", npix, wp.vec3)
+        keys = buf.no_keys
+        points, indices, parent = buf.no_points, buf.no_index, buf.no_index
+        t_hit, face = self.shadows.depth, buf.no_index  # no surfaces: nothing to keep but the segments
         if scene.surfaces:
-            t_hit = self.t_hit = self._scratch("t_hit", npix, float)
-            face = self.face = self._scratch("face", npix, int)
-            points, indices, parent = self._mesh_arrays()
+            t_hit = self.t_hit = buf.scratch("t_hit", npix, float)
+            face = self.face = buf.scratch("face", npix, int)
+            points, indices, parent = buf.raster_mesh(scene, u._surfaces)
         if scene.surfaces and self.settings["raster"]:
-            keys = self._scratch("keys", npix, wp.int64, fill=NO_HIT)
-            lo, hi = scene_bounds(scene)
-            corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-            t_far = float(np.max(np.linalg.norm(corners - np.asarray(cam.origin, float), axis=1)))
-            rasterise_visible(points, indices, view, t_far, keys, self._tiled(), self.device)
+            keys = buf.scratch("keys", npix, wp.int64, fill=NO_HIT)
+            rasterise_visible(points, indices, view, far_distance(scene), keys,
+                              tiled(self.settings["raster_tiles"], self.device), self.device)
         source = 0 if not scene.surfaces else (1 if self.settings["raster"] else 2)
         vis = VisibleSurface()
         vis.t_hit, vis.face, vis.segs, vis.points, vis.indices = t_hit, face, self.segs, points, indices
@@ -591,15 +497,15 @@ class LightShafts(Technique):
     def _surface(self):
         scene, cam, u = self.scene, self.scene.camera, self.uploads
         npix = cam.width * cam.height
-        self._no_shadow_maps()
-        self.radiance = self._scratch("radiance", npix, wp.vec3)
+        self.shadows.when_skipped()
+        self.radiance = self.buffers.scratch("radiance", npix, wp.vec3)
         mesh = u._surfaces.mesh
         vis = VisibleSurface()
         vis.t_hit, vis.face, vis.segs = self.t_hit, self.face, self.segs
         vis.points, vis.indices = mesh.points, mesh.indices
         dev.launch(shade_visible_surface, npix, [camera_view(pinhole(cam)), u.media.struct, u.surfaces,
-                                                 self._shadowed_lights(), vis, self.settings["shadow_steps"],
-                                                 self.settings["steps"], wp.vec3(*scene.background),
+                                                 self.shadows.lights(), vis,
+                                                 surface_pass(self.settings, scene.background),
                                                  self.multiple.struct(), self.radiance],
                    self.device, work=self.pixel_work(1.0, self._view_samples()))
 
@@ -608,54 +514,38 @@ class LightShafts(Technique):
         cam = scene.camera
         npix = cam.width * cam.height
         has_depth = bool(scene.surfaces)
-        self._no_shadow_maps()
-        if has_depth:
-            self.surface = self.radiance  # attenuated by the surface pass
-        else:
-            self.surface = self._scratch("surface", npix, wp.vec3)
-        st = ShaftSettings()
-        st.steps, st.block, st.jitter = cfg["steps"], self.effective_block(), cfg["jitter"]
-        st.scattering, st.shadow_steps, st.seed = cfg["scattering"], cfg["shadow_steps"], cfg["seed"]
-        st.spacing = cfg["spacing"]
-        st.has_depth = int(has_depth)
-        pixel = 2.0 * math.tan(math.radians(cam.fov_y) / 2.0) / cam.height  # a pixel's width per unit distance
-        st.near = cfg["light_ball"] * st.block * pixel
-        self.partial = self._scratch("partial", npix, wp.vec3)
-        self.own = self._scratch("own", npix, wp.vec3)
-        dev.launch(march_shafts, npix, [camera_view(pinhole(cam)), u.media.struct, self._shadowed_lights(), self.segs,
-                                        wp.vec3(*scene.background), st, self.multiple.struct(), self.surface,
-                                        self.partial, self.own], self.device,
+        self.shadows.when_skipped()
+        st = shaft_settings(cfg, self.effective_block(), cam, has_depth)
+        self.terms = out = ShaftTerms()
+        # with surfaces, the surface term is the surface pass's radiance, attenuated there
+        out.surface = self.radiance if has_depth else self.buffers.scratch("surface", npix, wp.vec3)
+        out.partial = self.buffers.scratch("partial", npix, wp.vec3)
+        out.own = self.buffers.scratch("own", npix, wp.vec3)
+        dev.launch(march_shafts, npix, [camera_view(pinhole(cam)), u.media.struct, self.shadows.lights(), self.segs,
+                                        wp.vec3(*scene.background), st, self.multiple.struct(), out], self.device,
                    work=self.pixel_work(st.steps / st.block**2, self._view_samples()))
         if st.block == 1 or not cfg["scattering"] or not scene.media:
             self.image = wp.empty(npix, dtype=wp.vec3, device=self.device)  # the frame's own: not reused
-            dev.launch(add_images, npix, [self.surface, self.partial, self.own, self.image], self.device)
-
-    def _view_samples(self) -> int:
-        """Density samples along a pixel's view ray: one a step in heterogeneous media (their
-        optical depth is marched), none where every medium has a closed form."""
-        return self.settings["steps"] if any(m.type != "homogeneous" for m in self.scene.media) else 0
+            dev.launch(add_images, npix, [out.surface, out.partial, out.own, self.image], self.device)
 
     def _block_rows(self):
         cam = self.scene.camera
-        self.rows = self._scratch("rows", cam.width * cam.height, wp.vec3)
-        dev.launch(block_sum_rows, cam.width * cam.height, [self.partial, cam.width, self.effective_block(), self.rows],
-                   self.device)
+        self.rows = self.buffers.scratch("rows", cam.width * cam.height, wp.vec3)
+        dev.launch(block_sum_rows, cam.width * cam.height, [self.terms.partial, cam.width, self.effective_block(),
+                                                            self.rows], self.device)
 
     def _block_cols(self):
-        cam = self.scene.camera
+        cam, terms = self.scene.camera, self.terms
         self.image = wp.empty(cam.width * cam.height, dtype=wp.vec3, device=self.device)
-        dev.launch(block_sum_cols, cam.width * cam.height, [self.rows, self.surface, self.own, cam.width, cam.height,
+        dev.launch(block_sum_cols, cam.width * cam.height, [self.rows, terms.surface, terms.own, cam.width, cam.height,
                                                             self.effective_block(), self.image], self.device)
 
     def _block_edges(self):
-        cam = self.scene.camera
+        cam, terms = self.scene.camera, self.terms
         self.image = wp.empty(cam.width * cam.height, dtype=wp.vec3, device=self.device)
         dev.launch(block_sum_depth_aware, cam.width * cam.height,
-                   [self.partial, self.surface, self.own, self.t_hit, cam.width, cam.height, self.effective_block(),
+                   [terms.partial, terms.surface, terms.own, self.t_hit, cam.width, cam.height, self.effective_block(),
                     self.settings["edge_tolerance"], self.image], self.device)
-
-    def output(self):
-        return self.image
 
     def arrays(self, for_view: bool = False, resolution: int = 128) -> dict:
         """Intermediate arrays for looking inside (``viz``): ``depth``, the distance to the visible
@@ -664,33 +554,24 @@ class LightShafts(Technique):
         its distances (``shadow_distance``); and ``lit_slice``, the in-scattered radiance toward
         the camera on the vertical plane through the camera's target facing the camera
         ((resolution, resolution, 3), with the plane's ``lit_slice_corners``, 4 x 3)."""
-        cam = self.scene.camera
+        cam, shadows = self.scene.camera, self.shadows
         out = {"shadow_points": [], "shadow_distance": []}
         if self.scene.surfaces and self.t_hit is not None:
             out["depth"] = self.t_hit.numpy().reshape(cam.height, cam.width)
-        structs = self._map_structs(occluders=bool(self.scene.surfaces)) if self.maps is not None else []
+        structs = shadows.structs(occluders=bool(self.scene.surfaces)) if shadows.maps is not None else []
         for sm in structs:
             count = texels(sm.kind, sm.res)
             if count == 0:
                 continue
             pts = wp.empty(count, dtype=wp.vec3, device=self.device)
-            dev.launch(shadow_hit_points, count, [sm, self.depth, pts], self.device)
+            dev.launch(shadow_hit_points, count, [sm, shadows.depth, pts], self.device)
             out["shadow_points"].append(pts.numpy())
-            out["shadow_distance"].append(self.depth.numpy()[sm.offset:sm.offset + count])
-        target, origin = np.asarray(cam.target, float), np.asarray(cam.origin, float)
-        view = (target - origin) / np.linalg.norm(target - origin)
-        right = np.cross(view, cam.up)
-        right /= np.linalg.norm(right)
-        lo, hi = scene_bounds(self.scene)
-        half = 0.5 * float(np.max(hi - lo))
-        up = np.asarray(cam.up, float) / np.linalg.norm(cam.up)
-        corner = target - half * right - half * up
-        edge_u, edge_v = 2 * half * right, 2 * half * up
+            out["shadow_distance"].append(shadows.depth.numpy()[sm.offset:sm.offset + count])
+        corner, edge_u, edge_v, view = slice_plane(self.scene)
         lit = wp.empty(resolution * resolution, dtype=wp.vec3, device=self.device)
         dev.launch(sample_lit_slice, resolution * resolution,
-                   [self.uploads.media.struct, self._shadowed_lights(), wp.vec3(*corner),
-                    wp.vec3(*edge_u), wp.vec3(*edge_v), resolution, wp.vec3(*view), self.settings["shadow_steps"],
-                    lit], self.device)
+                   [self.uploads.media.struct, shadows.lights(), wp.vec3(*corner), wp.vec3(*edge_u), wp.vec3(*edge_v),
+                    resolution, wp.vec3(*view), self.settings["shadow_steps"], lit], self.device)
         out["lit_slice"] = lit.numpy().reshape(resolution, resolution, 3)
         out["lit_slice_corners"] = np.array([corner, corner + edge_u, corner + edge_u + edge_v, corner + edge_v])
         return out

@@ -77,26 +77,27 @@ import dataclasses
 import numpy as np
 import warp as wp
 
-from .. import device as dev
-from ..geometry.camera import RasterView, camera_view, pixel_ray
-from ..geometry.intersect import inside_box, ray_box
-from ..geometry.mesh import Surfaces, surface_hit
-from ..media.grid import grid_corners, trilinear_blend
-from ..media.rbf import CUTOFF
-from ..media.volume import sample_extinction
-from ..physics.constants import INF
-from ..physics.lights import DIRECTIONAL, Emitter, angle_point, angle_samples, angle_share, light_incident, step_angle
-from ..physics.phase import PhaseParams, phase_eval, phase_struct
-from ..physics.transmittance import step_integral_rgb, transmittance_rgb
-from ..pipeline import Quality, Setting, Stage, Technique
-from ..scattering import BIASES as MS_BIASES
-from ..scattering import SETTINGS as MS_SETTINGS
-from ..scattering import MultipleScattering, ScatteredLight, scattered_light, scattered_on_surface
-from ..scattering import check_settings as check_ms_settings
-from ..scattering import leaves_out as ms_leaves_out
-from ..scene.model import RBFMedium
-from ..shading import reflected
-from ..upload import MediaBuffers, SceneUploads, medium_bounds, pinhole, scene_bounds
+from ... import device as dev
+from ...geometry.camera import RasterView, camera_view, pixel_ray
+from ...geometry.intersect import inside_box, ray_box
+from ...geometry.mesh import Surfaces, surface_hit
+from ...media.grid import grid_corners, trilinear_blend
+from ...media.rbf import CUTOFF
+from ...media.volume import sample_extinction
+from ...physics.constants import INF
+from ...physics.lights import DIRECTIONAL, Emitter, angle_point, angle_samples, angle_share, light_incident, step_angle
+from ...physics.phase import phase_eval
+from ...physics.transmittance import step_integral_rgb, transmittance_rgb
+from ...pipeline import Quality, Setting, Stage, Technique
+from ...scattering import BIASES as MS_BIASES
+from ...scattering import SETTINGS as MS_SETTINGS
+from ...scattering import MultipleScattering, ScatteredLight, scattered_light, scattered_on_surface
+from ...scattering import check_settings as check_ms_settings
+from ...scattering import leaves_out as ms_leaves_out
+from ...shading import reflected
+from ...upload import MediaBuffers, SceneUploads, pinhole
+from .volumes import Volume, Volumes, grid_volume, march_inputs
+from .wavefront import shell_plan, solve_axes
 
 dev.kernel_module(__name__)
 
@@ -110,77 +111,6 @@ SETTINGS = {
     "iterations": Setting(0, 0, 1 << 16, "whole-grid sweeps when wavefront = 0 (0: 3 x grid)"),
     **MS_SETTINGS,
 }
-
-
-ROOM = 2.0  # the surfaces' box is a room around the media when no wider than ROOM x theirs, per axis
-THINNEST = 0.01  # no axis of the volume thinner than this fraction of its widest
-
-
-def volume_bounds(scene) -> tuple[np.ndarray, np.ndarray]:
-    """The box (lo, hi) the EV and OPV cover.
-
-    * The media's bounds (RBFs to their cut-off), so every medium is inside and its cells go
-      to the media alone: surfaces reach the OPV through ``surface_optical_depth``, exactly
-      wherever they lie, so spanning them buys nothing and a floor plane 8 wide under a
-      medium 2 wide would leave the medium a quarter of the cells per axis (and a plane
-      alone gave the volume zero thickness: NaN images).
-    * Except when the surfaces' box is a room around the media (the paper's Cornell box):
-      it holds every RBF centre and every other medium whole, and is no more than ``ROOM``
-      times the media's bounds on any axis. Then the room is the volume, as in the paper:
-      cells cover the room, which the camera sees, and what falls outside are RBF tails past
-      the walls (below 2.3 sigma from a centre in rbf-single), hidden behind the walls but
-      at an open side. This keeps rbf-single, rbf-cornell and rbf-thick-fog as they were.
-    * Without media, the surfaces' box ([-1, 1]^3 without either).
-
-    Then every axis thinner than ``THINNEST`` of the widest is padded about its centre to
-    that thickness: a zero-thickness axis divides by zero, and a thickness near float32's
-    rounding (1e-7 of the coordinates) makes cell indices and trilinear weights noise. 1%
-    keeps the thinnest cells (n <= 512) 200 times above that rounding, and a medium
-    thinner than that is crossed in about one march step at the default 64 steps per
-    diagonal anyway, so the padding costs no resolution the march could use.
-    """
-    boxes = [b for b in map(medium_bounds, scene.media) if b is not None]
-    if not boxes:
-        lo, hi = scene_bounds(scene, media=False)
-    else:
-        lo, hi = np.min([b[0] for b in boxes], 0), np.max([b[1] for b in boxes], 0)
-        if scene.surfaces:
-            cores = [(m.centers.min(0), m.centers.max(0)) if isinstance(m, RBFMedium) else b
-                     for m, b in zip([m for m in scene.media if medium_bounds(m) is not None], boxes)]
-            clo, chi = np.min([c[0] for c in cores], 0), np.max([c[1] for c in cores], 0)
-            slo, shi = scene_bounds(scene, media=False)
-            if (slo <= clo).all() and (chi <= shi).all() and (shi - slo <= ROOM * (hi - lo)).all():
-                lo, hi = slo, shi
-    lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
-    ext = hi - lo
-    widest = ext.max() if ext.max() > 0 else 1.0
-    half = 0.5 * np.maximum(ext, THINNEST * widest)
-    mid = 0.5 * (lo + hi)
-    return np.where(ext < THINNEST * widest, mid - half, lo), np.where(ext < THINNEST * widest, mid + half, hi)
-
-
-@wp.struct
-class Volume:
-    """An n[0] x n[1] x n[2] grid of cells over [lo, hi]; values at cell centres, x fastest."""
-
-    lo: wp.vec3
-    hi: wp.vec3
-    n: wp.vec3i
-    h: wp.vec3  # cell size
-
-
-@wp.struct
-class Volumes:
-    """What the march reads: the extinction volume (EV) and the per-light optical depth
-    volumes (OPV, a cell's lights side by side: light l of cell c at c L + l for L lights) over
-    one ``Volume``, and the medium's albedo and phase function (the first medium's)."""
-
-    ev: wp.array(dtype=wp.vec3)
-    opv: wp.array(dtype=wp.vec3)
-    v: Volume
-    albedo: wp.vec3
-    phase: PhaseParams
-    phase_table: wp.array(dtype=float)
 
 
 @wp.func
@@ -542,14 +472,6 @@ class RBFPropagation(Technique):
     def leaves_out(self) -> list[str]:
         return [*ms_leaves_out(self.settings), *super().leaves_out()]
 
-    def _volume(self) -> Volume:
-        lo, hi = volume_bounds(self.scene)
-        n = self.settings["grid"]
-        v = Volume()
-        v.lo, v.hi, v.n = wp.vec3(*lo), wp.vec3(*hi), wp.vec3i(n, n, n)
-        v.h = wp.vec3(*((hi - lo) / n))
-        return v
-
     def stages(self):
         return self.uploads.stages() + [
             Stage("inject", self._inject, reads=("medium", "surfaces"), settings=("grid",)),  # the density stage
@@ -562,8 +484,8 @@ class RBFPropagation(Technique):
         ]
 
     def _inject(self):
-        self.volume = v = self._volume()
         n = self.settings["grid"]
+        self.volume = v = grid_volume(self.scene, n)
         self.ev = wp.zeros(n**3, dtype=wp.vec3, device=self.device)
         others = [m for m in self.scene.media if m.type != "rbf"]
         if others:
@@ -582,12 +504,10 @@ class RBFPropagation(Technique):
         count = len(self.scene.lights) * n**3
         tau = wp.zeros(count, dtype=wp.vec3, device=self.device)
         lights = self.uploads.lights
-        cells, base, shells = self.shell_plan()
-        solve = [2 if light.type != "directional" else int(np.argmax(np.abs(light.direction)))
-                 for light in self.scene.lights]  # the axis a shell thread solves for (one the light travels along)
+        cells, base, shells = shell_plan(self.scene.lights, v, n)
         cells = wp.array(cells, dtype=wp.vec3i, device=self.device)
         base = wp.array(base, dtype=int, device=self.device)
-        solve = wp.array(solve, dtype=int, device=self.device)
+        solve = wp.array(solve_axes(self.scene.lights), dtype=int, device=self.device)
         self.launches = 0
         if self.settings["wavefront"]:
             for shell in range(shells):
@@ -603,48 +523,14 @@ class RBFPropagation(Technique):
                 tau, other = other, tau
         self.opv = tau
 
-    def shell_plan(self) -> tuple[np.ndarray, np.ndarray, int]:
-        """The wavefront's plan: per light its cell (clamped to [-1, n] per axis in floating
-        point before any integer, so a light at 1e30 cannot overflow; unused for directional
-        lights), the Manhattan distance of its nearest grid cell (launch k updates the
-        cells at that distance + k) and the launches that reach every cell: the largest
-        (farthest - nearest) + 1 over the lights, at most 3(n - 1) + 1."""
-        n = self.settings["grid"]
-        lo, h = np.asarray(self.volume.lo, np.float32), np.asarray(self.volume.h, np.float32)
-        cells, base, spread = [], [], [0]
-        for light in self.scene.lights:
-            if light.type == "directional":  # offsets from the upwind corner: 0 .. n - 1 on each axis used
-                cells.append((0, 0, 0))
-                base.append(0)
-                spread.append(int(np.sum(np.asarray(light.direction) != 0)) * (n - 1))
-                continue
-            with np.errstate(over="ignore", invalid="ignore"):  # float32 as the kernels: the same cell on a boundary
-                g = np.floor((np.asarray(light.position, np.float32) - lo) / h)
-            g = np.clip(np.nan_to_num(g, nan=-1.0), -1, n).astype(int)
-            near = np.maximum(np.maximum(-g, g - (n - 1)), 0)  # distance to the range 0 .. n - 1 per axis
-            far = np.maximum(np.abs(g), np.abs(n - 1 - g))
-            cells.append(tuple(g))
-            base.append(int(near.sum()))
-            spread.append(int(far.sum() - near.sum()))
-        return (np.asarray(cells, np.int32).reshape(-1, 3), np.asarray(base, np.int32).reshape(-1),
-                max(spread) + 1)
-
     def _march(self):
         scene, u = self.scene, self.uploads
         cam = scene.camera
         npix = cam.width * cam.height
-        medium = scene.media[0] if scene.media else None
         if self.opv is None or not scene.lights:
             self.opv = wp.zeros(1, dtype=wp.vec3, device=self.device)
         self.image = wp.empty(npix, dtype=wp.vec3, device=self.device)
-        albedo = wp.vec3(*medium.albedo) if medium is not None else wp.vec3(0.0)
-        phase, table = PhaseParams(), np.zeros(1, np.float32)
-        if medium is not None:  # the first medium's
-            phase, table = phase_struct(medium.phase)
-        phase_table = wp.array(table if len(table) else np.zeros(1, np.float32), dtype=float, device=self.device)
-        vols = Volumes()
-        vols.ev, vols.opv, vols.v = self.ev, self.opv, self.volume
-        vols.albedo, vols.phase, vols.phase_table = albedo, phase, phase_table
+        vols = march_inputs(self.ev, self.opv, self.volume, scene.media[0] if scene.media else None, self.device)
         dev.launch(march_volumes, npix, [camera_view(pinhole(cam)), u.surfaces, u.lights, vols,
                                          self.settings["steps"], wp.vec3(*scene.background), self.multiple.struct(),
                                          self.image], self.device, work=self.settings["steps"])
