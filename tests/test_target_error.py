@@ -229,3 +229,33 @@ def test_target_error_does_not_depend_on_brightness(device, technique, scene):
         assert frame.settings == one.settings and frame.moved_to_limit == one.moved_to_limit
         assert frame.error_estimate == pytest.approx(one.error_estimate, rel=1e-3)
         assert wv.relative_rmse(frame.image / k, one.image) < 1e-4
+
+
+@pytest.mark.parametrize("technique", ["reference", "raymarch", "light_shafts", "particle_glow", "rbf_propagation",
+                                       "depth_impostors", "illumination_network"])
+def test_a_search_moves_one_renderer_to_the_image_a_fresh_one_renders(technique):
+    """target_error renders every level and seed from one Renderer, moving its settings
+    (``Renderer.update``): the stages the move leaves alone are kept. The image after the move
+    must be the one a fresh Renderer renders at the same settings, to the bit: a stage kept
+    though its inputs changed (a setting it reads but does not declare) shows here. The moves
+    are the search's: the knob up a level, its tied settings and the seed with it, a bias
+    setting to its limit, and back, from the settings the search holds (``QUALITY_HOLD``)."""
+    cls = wv.technique_class(technique)
+    q = cls.QUALITY
+    defaults = {k: s.default for k, s in cls.SETTINGS.items()} | cls.QUALITY_HOLD
+    scene = wv.load_scene("particle-cloud", ["camera.width=16", "camera.height=12"])
+    moves = [q.level_settings(q.start), q.level_settings(2 * q.start)]
+    if cls.QUALITY_SEED:
+        moves = [{**moves[0], cls.QUALITY_SEED: 1}, {**moves[0], cls.QUALITY_SEED: 2}, {**moves[1], cls.QUALITY_SEED: 1}]
+    for b in q.biases[:1]:
+        limit = b.exact if b.exact is not None else defaults[b.setting] * b.factor
+        limit = min(limit, cls.SETTINGS[b.setting].hi if b.top is None else b.top)
+        moves.append({**moves[-1], b.setting: type(defaults[b.setting])(limit)})
+    moves.append(moves[0])
+    moved = wv.Renderer(scene, technique, "cpu", one_shot=True, **{**defaults, **moves[0]})
+    for settings in moves:
+        full = {**defaults, **settings}
+        moved.update(settings=full)
+        got = moved.render().image.copy()
+        fresh = wv.Renderer(scene, technique, "cpu", one_shot=True, **full).render().image
+        assert np.array_equal(got, fresh), f"{technique} after moving to {settings}"

@@ -13,7 +13,7 @@ import numpy as np
 
 from .metrics import error_scale, relative_rmse
 from .pipeline import Frame, SettingsError, has_sky
-from .renderer import Renderer, render_once, technique_class, technique_names
+from .renderer import Renderer, technique_class, technique_names
 from .scene import load_scene
 
 
@@ -110,59 +110,20 @@ def render_to_target(scene, technique: str, device, progress: bool, target: floa
     ``Quality`` knob, then each ``Bias`` setting's bias measured at the level found (see
     ``render``)."""
     cls = technique_class(technique)
-    q = getattr(cls, "QUALITY", None)
-    if q is None:
-        raise SettingsError(f"{technique}: target_error is not supported yet (supported: "
-                            f"{', '.join(n for n in technique_names() if getattr(technique_class(n), 'QUALITY', None))})")
-    for key in (q.knob, *(q.tied or {})):
-        if key in settings:
-            raise SettingsError(f"{technique}: give target_error or {key}, not both (target_error chooses {key})")
-    seed = getattr(cls, "QUALITY_SEED", None)
-    if seed is not None and seed in settings:
-        raise SettingsError(f"{technique}: give target_error or {seed}, not both (target_error draws two)")
+    q, seed = _check_target_settings(cls, technique, settings)
     scene = load_scene(scene)
     base = {**getattr(cls, "QUALITY_HOLD", {}), **settings}
-    defaults = {k: s.default for k, s in cls.SETTINGS.items()}
+    renders = _Renders(scene, technique, device, progress)
     if q.knob == "spp":  # unbiased Monte Carlo: its noise is the whole error
-        return _render_spp(scene, technique, device, progress, target, base, q, seed)
+        return _render_spp(renders, technique, progress, target, base, q, seed)
 
-    sky = has_sky(scene)
     held: dict = {}  # bias settings moved to their limit
     aim = target  # the ladder's share of the target
     first = q.start
     for _ in range(MAX_ROUNDS):
         current = {**base, **held}
-        frame, estimate, level = _ladder(scene, technique, device, progress, aim, current, q, seed, first)
-        biases, limits = {}, {}
-        for b in q.biases:
-            value = current.get(b.setting, defaults[b.setting])
-            if b.when == "sky" and not sky:
-                continue
-            if b.when == "multiple" and not current.get("multiple_scattering", defaults.get("multiple_scattering")):
-                continue
-            if b.when == "rbf" and not any(m.type == "rbf" for m in scene.media):
-                continue
-            if b.when == "heterogeneous" and all(m.type == "homogeneous" for m in scene.media):
-                continue
-            hi = cls.SETTINGS[b.setting].hi if b.top is None else b.top
-            limit = b.exact if b.exact is not None else min(value * b.factor, hi)
-            if b.exact is None and value == 0:  # off (0: left out)
-                continue
-            if limit == value:
-                if b.top is None or b.exact is not None:  # at its limit: no bias left
-                    continue
-                # at the top target_error takes it to (the cost), short of the limit: its bias
-                # measured against the level below (an over-estimate: that level's own), not moved
-                lower = type(value)(max(value // b.factor, 1))
-                if lower == value:
-                    continue
-                img = _level_image(scene, technique, device, progress, {**current, b.setting: lower}, q, seed, level)
-                biases[b.setting] = bias_error(frame.image, img, b)
-                continue
-            extra = {**current, b.setting: type(value)(limit)}
-            img = _level_image(scene, technique, device, progress, extra, q, seed, level)
-            biases[b.setting] = bias_error(frame.image, img, b)
-            limits[b.setting] = type(value)(limit)
+        frame, estimate, level = _ladder(renders, technique, progress, aim, current, q, seed, first)
+        biases, limits = _measure_biases(renders, cls, scene, frame, current, level)
         total = float(np.sqrt(estimate**2 + sum(e * e for e in biases.values())))
         frame.bias_estimates = dict(biases)
         frame.moved_to_limit = dict(held)
@@ -190,32 +151,118 @@ def render_to_target(scene, technique: str, device, progress: bool, target: floa
     return frame
 
 
+def _check_target_settings(cls, technique: str, settings: dict):
+    """The technique's ``Quality`` and seed setting, after refusing what target_error chooses
+    itself (the knob, its tied settings, the seed) among the given ``settings``."""
+    q = getattr(cls, "QUALITY", None)
+    if q is None:
+        raise SettingsError(f"{technique}: target_error is not supported yet (supported: "
+                            f"{', '.join(n for n in technique_names() if getattr(technique_class(n), 'QUALITY', None))})")
+    for key in (q.knob, *(q.tied or {})):
+        if key in settings:
+            raise SettingsError(f"{technique}: give target_error or {key}, not both (target_error chooses {key})")
+    seed = getattr(cls, "QUALITY_SEED", None)
+    if seed is not None and seed in settings:
+        raise SettingsError(f"{technique}: give target_error or {seed}, not both (target_error draws two)")
+    return q, seed
+
+
+def _bias_applies(b, scene, current: dict, defaults: dict) -> bool:
+    """Whether the scene has what bias setting ``b`` acts on (``Bias.when``)."""
+    if b.when == "sky":
+        return has_sky(scene)
+    if b.when == "multiple":
+        return bool(current.get("multiple_scattering", defaults.get("multiple_scattering")))
+    if b.when == "rbf":
+        return any(m.type == "rbf" for m in scene.media)
+    if b.when == "heterogeneous":
+        return not all(m.type == "homogeneous" for m in scene.media)
+    return True
+
+
+def _measure_biases(renders: "_Renders", cls, scene, frame: Frame, current: dict, level: int):
+    """Each ``Bias`` setting's bias in ``frame`` (the ladder's, at ``level``): against the setting
+    at its limit, or, at the top target_error takes it to, against the level below. Returns
+    ({setting: bias}, {setting: its limit, where it could be moved there})."""
+    q, seed = cls.QUALITY, getattr(cls, "QUALITY_SEED", None)
+    defaults = {k: s.default for k, s in cls.SETTINGS.items()}
+    biases, limits = {}, {}
+    for b in q.biases:
+        value = current.get(b.setting, defaults[b.setting])
+        if not _bias_applies(b, scene, current, defaults):
+            continue
+        hi = cls.SETTINGS[b.setting].hi if b.top is None else b.top
+        limit = b.exact if b.exact is not None else min(value * b.factor, hi)
+        if b.exact is None and value == 0:  # off (0: left out)
+            continue
+        if limit == value:
+            if b.top is None or b.exact is not None:  # at its limit: no bias left
+                continue
+            # at the top target_error takes it to (the cost), short of the limit: its bias
+            # measured against the level below (an over-estimate: that level's own), not moved
+            lower = type(value)(max(value // b.factor, 1))
+            if lower == value:
+                continue
+            img = _level_image(renders, {**current, b.setting: lower}, q, seed, level)
+            biases[b.setting] = bias_error(frame.image, img, b)
+            continue
+        img = _level_image(renders, {**current, b.setting: type(value)(limit)}, q, seed, level)
+        biases[b.setting] = bias_error(frame.image, img, b)
+        limits[b.setting] = type(value)(limit)
+    return biases, limits
+
+
 def _say(progress: bool, line: str) -> None:
     """A search's progress, one line on stderr (where the progress bars go), when ``progress``."""
     if progress:
         print(line, file=sys.stderr, flush=True)
 
 
-def _two_seeds(scene, technique, device, progress, settings: dict, seed: str):
+class _Renders:
+    """The renders of one search, from one Renderer: each render moves the settings
+    (``Renderer.update`` with every setting named, so none is left over from the render before)
+    and the stages whose inputs the move leaves alone (the uploads and their BVHs; a lattice, a
+    light pass or a bake at unchanged settings) are kept instead of rebuilt, as a fresh Renderer
+    per render would. Each frame's image is copied off at once: the next render may reuse the
+    technique's output buffer."""
+
+    def __init__(self, scene, technique: str, device, progress: bool):
+        self._args = (scene, technique, device, progress)
+        self._defaults = {k: s.default for k, s in technique_class(technique).SETTINGS.items()}
+        self._renderer: Renderer | None = None
+
+    def frame(self, settings: dict) -> Frame:
+        full = {**self._defaults, **settings}
+        if self._renderer is None:
+            scene, technique, device, progress = self._args
+            self._renderer = Renderer(scene, technique, device, progress, one_shot=True, **full)
+        else:
+            self._renderer.update(settings=full)
+        frame = self._renderer.render()
+        return _with_image(frame, frame.image, frame.settings)
+
+
+def _two_seeds(renders: _Renders, settings: dict, seed: str):
     """The mean of two independent answers (``seed`` 1 and 2) at ``settings`` and its relative
     standard error: (frame, mean image, spread)."""
-    a = render_once(scene, technique, device, progress, **{**settings, seed: 1})
-    b = render_once(scene, technique, device, progress, **{**settings, seed: 2})
+    a = renders.frame({**settings, seed: 1})
+    b = renders.frame({**settings, seed: 2})
     ia, ib = a.image.astype(np.float64), b.image.astype(np.float64)
     mean = 0.5 * (ia + ib)
     frame = _with_image(a, mean, {**a.settings, seed: "1 and 2, averaged"})
     return frame, mean, relative_rmse(mean + 0.5 * np.abs(ia - ib), mean)
 
 
-def _level_image(scene, technique, device, progress, settings: dict, q, seed, level: int) -> np.ndarray:
+def _level_image(renders: _Renders, settings: dict, q, seed, level: int) -> np.ndarray:
     """One level's image (the mean of two seeds where the technique is seeded)."""
     settings = {**settings, **q.level_settings(level)}
     if seed is None:
-        return render_once(scene, technique, device, progress, **settings).image.astype(np.float64)
-    return _two_seeds(scene, technique, device, progress, settings, seed)[1]
+        return renders.frame(settings).image.astype(np.float64)
+    return _two_seeds(renders, settings, seed)[1]
 
 
-def _render_spp(scene, technique, device, progress, target: float, settings: dict, q, seed: str) -> Frame:
+def _render_spp(renders: _Renders, technique: str, progress: bool, target: float, settings: dict, q,
+                seed: str) -> Frame:
     """The reference: two runs of independent samples, raised until the standard error of
     their mean is under SPP_MARGIN of the target."""
     level, limit = max(1, q.start // 2), q.top // 2  # samples of each run
@@ -225,7 +272,7 @@ def _render_spp(scene, technique, device, progress, target: float, settings: dic
     aim = SPP_MARGIN * target
     while True:
         t0 = time.perf_counter()
-        frame, _, estimate = _two_seeds(scene, technique, device, progress, {**settings, q.knob: level}, seed)
+        frame, _, estimate = _two_seeds(renders, {**settings, q.knob: level}, seed)
         took = time.perf_counter() - t0
         if estimate <= aim or level >= limit:
             _say(progress, f"target_error: {technique} {q.knob} = {2 * level}: estimate {estimate:.3g} "
@@ -245,23 +292,19 @@ def _render_spp(scene, technique, device, progress, target: float, settings: dic
     return frame
 
 
-def _ladder(scene, technique, device, progress, target: float, settings: dict, q, seed, first: int):
+def _ladder(renders: _Renders, technique: str, progress: bool, target: float, settings: dict, q, seed, first: int):
     """Double the knob from ``first`` until the error is at most ``target``: at the first level
     whose three-level extrapolation (``remaining_error``) meets it, one more level is rendered
     and the level's error measured against it (``measured_error``). Returns (frame, estimate,
     level)."""
-    r = None
-    if seed is None:
-        r = Renderer(scene, technique, device, progress, one_shot=True, **{**settings, **q.level_settings(first)})
     level, images, spreads, candidate = first, [], [], None
     while True:
-        if r is not None:
-            frame = r.render()
+        if seed is None:
+            frame = renders.frame({**settings, **q.level_settings(level)})
             images.append(frame.image.astype(np.float64))
             spreads.append(0.0)
         else:  # seeded (jitter, turned directions): each level is the mean of two seeds
-            frame, mean, spread = _two_seeds(scene, technique, device, progress,
-                                             {**settings, **q.level_settings(level)}, seed)
+            frame, mean, spread = _two_seeds(renders, {**settings, **q.level_settings(level)}, seed)
             images.append(mean)
             spreads.append(spread)
         if candidate is not None:  # the previous level met the target by extrapolation: measure it
@@ -283,8 +326,6 @@ def _ladder(scene, technique, device, progress, target: float, settings: dict, q
         if estimate <= target:  # a copy: the next level may reuse the output buffer
             candidate = _with_image(frame, images[-1], frame.settings)
         level *= 2
-        if r is not None:
-            r.update(settings=q.level_settings(level))
 
 
 def render_auto(scene, device, progress: bool, settings: dict) -> Frame:
