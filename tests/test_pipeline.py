@@ -243,3 +243,25 @@ def test_a_large_private_copy_is_not_kept():
     assert np.all(a.numpy() == 2.0) and np.all(b.numpy() == 3.0)
     assert (str(small.device), small.dtype, 1) in dev._scratch_pool  # the small one kept
     assert all(v.capacity <= dev.SCRATCH_KEEP for v in dev._scratch_pool.values())  # the big one not
+
+
+def test_the_scratch_pool_goes_with_the_last_renderer(monkeypatch):
+    """The per-core copies a CPU launch combines into (``device.launch_private``) are kept between
+    launches while a Renderer lives, and freed when the last one is collected."""
+    import gc
+
+    from warpvol import device as dev
+
+    monkeypatch.setattr(dev, "threads", lambda: 2)  # two cores, so that the light pass makes copies
+    gc.collect()
+    scene = wv.load_scene("particle-cloud", ["camera.width=16", "camera.height=12"])
+    a = wv.Renderer(scene, technique="depth_impostors", device="cpu")
+    b = wv.Renderer(scene, technique="depth_impostors", device="cpu")
+    a.render()
+    assert dev.scratch_bytes() > 0
+    del a
+    gc.collect()
+    assert dev.scratch_bytes() > 0  # b may still use it
+    del b
+    gc.collect()
+    assert dev.scratch_bytes() == 0

@@ -52,6 +52,7 @@ class Renderer:
         self._technique = cls(load_scene(scene, overrides), dev.pick(device), resolved, progress)
         self._technique.one_shot = bool(one_shot)
         self._pipeline = Pipeline(self._technique)
+        dev.scratch_user(self)  # the CPU launches' per-core scratch is freed with the last Renderer
 
     @property
     def scene(self):
