@@ -118,3 +118,28 @@ def test_every_kernel_module_is_registered_and_built_for_cuda():
     assert len(modules) > 10
     unregistered = sorted(modules - set(device.KERNEL_MODULES))
     assert not unregistered, f"kernel modules not registered by importing the techniques: {unregistered}"
+
+
+def test_every_medium_kind_exposes_the_same_interface():
+    """Each medium kind's module exposes sigma_t at a point, its optical depth in closed form (a
+    grid: its transmittance by ratio tracking instead) and a free flight, with the same arguments
+    in the same order, so ``media/volume.py``'s dispatch is one call a kind."""
+    import ast
+    from pathlib import Path
+
+    media = Path(__file__).resolve().parent.parent / "warpvol" / "media"
+    want = {"extinction": ["sigma", "x"], "tau": ["sigma", "o", "d", "t0", "t1"],
+            "transmittance": ["sigma", "o", "d", "t0", "t1", "c", "rng"],
+            "free_flight": ["sigma", "o", "d", "t0", "t1", "c", "rng"]}
+    kinds = {"homogeneous": ("shape", "Shape", ("extinction", "tau", "free_flight")),
+             "grid": ("grid", "Grid", ("extinction", "transmittance", "free_flight")),
+             "rbf": ("rbf", "Gaussians", ("extinction", "tau", "free_flight")),
+             "particles": ("particle", "Particles", ("extinction", "tau", "free_flight"))}
+    for module, (prefix, struct, functions) in kinds.items():
+        defs = {n.name: n for n in ast.parse((media / f"{module}.py").read_text()).body if isinstance(n, ast.FunctionDef)}
+        for f in functions:
+            node = defs.get(f"{prefix}_{f}")
+            assert node is not None, f"media/{module}.py has no {prefix}_{f}"
+            args = [a.arg for a in node.args.args]
+            assert ast.unparse(node.args.args[0].annotation) == struct, f"{prefix}_{f} does not take the {struct} first"
+            assert args[1:] == want[f], f"{prefix}_{f}{tuple(args)}: not the interface's arguments"

@@ -23,7 +23,7 @@ import warp as wp
 
 from .. import device as dev
 from ..geometry.intersect import inside_box, ray_box
-from ..physics.constants import INF
+from ..physics.constants import INF, STREAM
 from ..physics.sampling import sample_exponential
 
 dev.kernel_module(__name__)
@@ -87,7 +87,7 @@ def volume_trilinear(volume: wp.uint64, origin: wp.vec3i, dims: wp.vec3i, bmin: 
     a = a + origin
     b = b + origin
     # one lookup in a loop, not eight written out: the lookup inlines a NanoVDB tree walk, and
-    # eight copies of it made medium_density too large to inline into its callers, which then
+    # eight copies of it made the density lookup too large to inline into its callers, which then
     # copied the Media struct per call (light_shafts' march on a homogeneous medium: 2.5x the
     # time). The corner count is a runtime value so that Warp does not unroll the loop.
     v = wp.vector(length=8, dtype=float)
@@ -406,6 +406,31 @@ def grid_tracking(G: Grid, o: wp.vec3, d: wp.vec3, t0: float, t1: float, sig: fl
         if cell[ax] < 0 or cell[ax] >= n[ax]:
             break
     return t1, wp.where(ratio, w, 0.0)
+
+
+@wp.func
+def grid_extinction(G: Grid, sigma: wp.vec3, x: wp.vec3) -> wp.vec3:
+    """sigma_t at x: the trilinear density times sigma (the medium interface, as ``shape_extinction``)."""
+    return grid_density(G, x) * sigma
+
+
+@wp.func
+def grid_free_flight(G: Grid, sigma: wp.vec3, o: wp.vec3, d: wp.vec3, t0: float, t1: float, c: int,
+                     rng: wp.uint32):
+    """The first real collision on [t0, t1) in channel c by delta tracking (``grid_tracking``):
+    (t, whether there is one, the generator after its draw). A grid has no closed-form optical
+    depth: its transmittance is tracked too (``grid_transmittance``)."""
+    t, w = grid_tracking(G, o, d, t0, t1, sigma[c], False, wp.rand_init(wp.randi(rng), STREAM))
+    return t, w > 0.0, rng
+
+
+@wp.func
+def grid_transmittance(G: Grid, sigma: wp.vec3, o: wp.vec3, d: wp.vec3, t0: float, t1: float, c: int,
+                       rng: wp.uint32):
+    """An unbiased estimate of channel c's transmittance over [t0, t1] by ratio tracking
+    (``grid_tracking``): (the estimate, the generator after its draw)."""
+    t, w = grid_tracking(G, o, d, t0, t1, sigma[c], True, wp.rand_init(wp.randi(rng), STREAM))
+    return w, rng
 
 
 class GridBuffers:

@@ -3,6 +3,11 @@
 Along a ray each is one chord [a, b] (a slab or a sphere test), so its optical depth over
 [t0, t1] is sigma_t times the overlap of the two and its first collision one exponential
 variate: t0' + E / sigma_t, E ~ Exp(1), when that falls inside the chord.
+
+The medium interface every kind module exposes, with the same arguments (the kind's struct,
+the medium's RGB scale sigma, then the point or the ray): ``shape_extinction`` (sigma_t at x),
+``shape_tau`` (the optical depth over [t0, t1], in closed form) and ``shape_free_flight`` (the
+first collision in channel c: t, whether there is one, the generator after its draws).
 """
 
 import warp as wp
@@ -10,6 +15,17 @@ import warp as wp
 from ..geometry.intersect import inside_box, ray_box, ray_sphere
 from ..physics.constants import INF
 from ..physics.sampling import sample_exponential
+
+
+@wp.struct
+class Shape:
+    """A homogeneous medium's shape: the box [lo, hi] (box = 1) or the ball (centre, radius)."""
+
+    box: int
+    lo: wp.vec3
+    hi: wp.vec3
+    centre: wp.vec3
+    radius: float
 
 
 @wp.func
@@ -53,3 +69,26 @@ def uniform_collision(a: float, b: float, sig: float, u: float) -> float:
         return INF
     t = a + sample_exponential(u, sig)
     return wp.where(t < b, t, INF)
+
+
+@wp.func
+def shape_extinction(S: Shape, sigma: wp.vec3, x: wp.vec3) -> wp.vec3:
+    """sigma_t at x: sigma inside the shape, 0 outside."""
+    return wp.where(shape_inside(S.box != 0, S.lo, S.hi, S.centre, S.radius, x), 1.0, 0.0) * sigma
+
+
+@wp.func
+def shape_tau(S: Shape, sigma: wp.vec3, o: wp.vec3, d: wp.vec3, t0: float, t1: float) -> wp.vec3:
+    """The optical depth over [t0, t1] along o + t d (unit d): sigma times the chord's overlap."""
+    overlap = shape_length(S.box != 0, S.lo, S.hi, S.centre, S.radius, o, d, t0, t1)
+    return wp.where(overlap > 0.0, overlap, 0.0) * sigma
+
+
+@wp.func
+def shape_free_flight(S: Shape, sigma: wp.vec3, o: wp.vec3, d: wp.vec3, t0: float, t1: float, c: int,
+                      rng: wp.uint32):
+    """The first collision on [t0, t1) along o + t d (unit d) in channel c: (t, whether there is
+    one, the generator after its draw); one exponential variate in the chord."""
+    a, b = shape_chord(S.box != 0, S.lo, S.hi, S.centre, S.radius, o, d)
+    t = uniform_collision(wp.max(a, t0), wp.min(b, t1), sigma[c], wp.randf(rng))
+    return t, t < t1, rng

@@ -62,6 +62,20 @@ def particle_sigma_t(P: Particles, x: wp.vec3) -> wp.vec3:
 
 
 @wp.func
+def particle_extinction(P: Particles, sigma: wp.vec3, x: wp.vec3) -> wp.vec3:
+    """sigma_t at x (``particle_sigma_t``; the medium interface, as ``shape_extinction``: ``sigma`` is
+    unread, each sphere carries its own sigma_t)."""
+    return particle_sigma_t(P, x)
+
+
+@wp.func
+def particle_tau(P: Particles, sigma: wp.vec3, o: wp.vec3, d: wp.vec3, t0: float, t1: float) -> wp.vec3:
+    """The optical depth over [t0, t1] along o + t d (unit d) through every sphere
+    (``particle_optical_depth``; ``sigma`` unread)."""
+    return particle_optical_depth(P, -1, o, d, t0, t1)
+
+
+@wp.func
 def particle_optical_depth(P: Particles, skip: int, x: wp.vec3, w: wp.vec3, t0: float, t1: float) -> wp.vec3:
     """Optical depth along x + t w (unit w), t0 <= t <= t1, through the union of the spheres
     other than ``skip`` (-1: all): exact, chord lengths times sigma_t, the spheres found by a
@@ -80,10 +94,12 @@ def particle_optical_depth(P: Particles, skip: int, x: wp.vec3, w: wp.vec3, t0: 
 
 
 @wp.func
-def particle_free_flight(P: Particles, o: wp.vec3, d: wp.vec3, t0: float, t1: float, c: int, rng: wp.uint32):
+def particle_free_flight(P: Particles, sigma: wp.vec3, o: wp.vec3, d: wp.vec3, t0: float, t1: float, c: int,
+                         rng: wp.uint32):
     """The first collision on [t0, t1) along o + t d (unit d) in channel c: the earliest of the
     spheres' own first collisions, each in a uniform medium (``uniform_collision``). Returns
-    (t, whether there is one, the generator after its draws); t = t1 when there is none."""
+    (t, whether there is one, the generator after its draws); t = t1 when there is none.
+    ``sigma`` is unread: each sphere carries its own sigma_t (the medium interface's arguments)."""
     best = float(t1)
     hit = bool(False)
     if P.bvh != wp.uint64(0):

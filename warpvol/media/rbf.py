@@ -136,10 +136,12 @@ def rbf_depths_and_density(R: Gaussians, o: wp.vec3, d: wp.vec3, t0: float, t1: 
 
 
 @wp.func
-def rbf_free_flight(R: Gaussians, o: wp.vec3, d: wp.vec3, t0: float, t1: float, sig: float, rng: wp.uint32):
-    """The first collision on [t0, t1) along o + t d (unit d) in a channel of peak ``sig``: the
+def rbf_free_flight(R: Gaussians, sigma: wp.vec3, o: wp.vec3, d: wp.vec3, t0: float, t1: float, c: int,
+                    rng: wp.uint32):
+    """The first collision on [t0, t1) along o + t d (unit d) in channel c (peak sigma[c]): the
     earliest of the Gaussians' own first collisions, each sampled exactly by inverting its erf.
     Returns (t, whether there is one, the generator after its draws); t = t1 when there is none."""
+    sig = sigma[c]
     best = float(t1)
     hit = bool(False)
     query = wp.bvh_query_ray(R.bvh, o, d)
@@ -158,6 +160,18 @@ def rbf_free_flight(R: Gaussians, o: wp.vec3, d: wp.vec3, t0: float, t1: float, 
                     best = wp.clamp(tc + SQRT2 * r * wp.float32(z), a, b)
                     hit = True
     return best, hit, rng
+
+
+@wp.func
+def rbf_extinction(R: Gaussians, sigma: wp.vec3, x: wp.vec3) -> wp.vec3:
+    """sigma_t at x: the Gaussians' sum times sigma (the medium interface, as ``shape_extinction``)."""
+    return rbf_density(R, x) * sigma
+
+
+@wp.func
+def rbf_tau(R: Gaussians, sigma: wp.vec3, o: wp.vec3, d: wp.vec3, t0: float, t1: float) -> wp.vec3:
+    """The optical depth over [t0, t1] along o + t d (unit d): an erf difference per Gaussian, times sigma."""
+    return rbf_optical_depth(R, o, d, t0, t1) * sigma
 
 
 class GaussianBuffers:

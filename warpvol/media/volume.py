@@ -15,6 +15,14 @@ first collisions (``free_flight``), and the transmittance is the product of thei
 (``transmittance_estimate``). Only grids are tracked, against their majorant grids. A dense
 medium therefore costs what its surface costs: with sigma_t = 1e6 a path stops at the first
 sphere it enters, not after 1e6 null collisions per unit.
+
+Each kind's module exposes the same medium interface, so the dispatch here is one line a kind:
+``<kind>_extinction(S, sigma, x)`` (sigma_t at x), ``<kind>_tau(S, sigma, o, d, t0, t1)`` (the
+optical depth in closed form; a grid has none and gives ``grid_transmittance`` by ratio
+tracking instead) and ``<kind>_free_flight(S, sigma, o, d, t0, t1, c, rng)`` -> (t, hit, rng),
+with S the kind's struct (``Shape``, ``Grid``, ``Gaussians``, ``Particles``) and sigma the
+medium's RGB scale; the majorants are the modules' host functions (``majorant_grid``,
+``rbf_majorant``, ``particle_majorant``; a shape's is its sigma_t).
 """
 
 from __future__ import annotations
@@ -23,13 +31,13 @@ import warp as wp
 
 from .. import device as dev
 from ..geometry.intersect import inside_box, ray_box, ray_sphere
-from ..physics.constants import INF, STREAM
+from ..physics.constants import INF
 from ..physics.phase import PhaseParams, phase_eval
 from ..physics.transmittance import transmittance_rgb
-from .grid import Grid, grid_density, grid_tracking
-from .homogeneous import shape_chord, shape_inside, shape_length, uniform_collision
-from .particles import Particles, particle_free_flight, particle_optical_depth, particle_sigma_t
-from .rbf import Gaussians, rbf_density, rbf_depths_and_density, rbf_free_flight, rbf_optical_depth
+from .grid import Grid, grid_extinction, grid_free_flight, grid_transmittance
+from .homogeneous import Shape, shape_extinction, shape_free_flight, shape_tau
+from .particles import Particles, particle_extinction, particle_free_flight, particle_optical_depth, particle_tau
+from .rbf import Gaussians, rbf_density, rbf_depths_and_density, rbf_extinction, rbf_free_flight, rbf_tau
 
 dev.kernel_module(__name__)
 
@@ -67,32 +75,37 @@ class Media:
 
 
 @wp.func
-def medium_density(m: Media, i: int, x: wp.vec3) -> float:
-    """The density factor of a homogeneous, grid or RBF medium i at x (sigma_t = it times
-    m.sigma[i]); particle media have per-sphere sigma_t (``medium_sigma_t``)."""
-    kind = m.kind[i]
-    if kind == BOX or kind == SPHERE:
-        return wp.where(shape_inside(kind == BOX, m.bmin[i], m.bmax[i], m.center[i], m.radius[i], x), 1.0, 0.0)
-    if kind == GRID:
-        return grid_density(m.grids[m.index[i]], x)
-    if not inside_box(x, m.bmin[i], m.bmax[i]):
-        return 0.0
-    return rbf_density(m.gaussians[m.index[i]], x)
+def shape_of(m: Media, i: int) -> Shape:
+    """Homogeneous medium i's shape."""
+    S = Shape()
+    S.box = wp.where(m.kind[i] == BOX, 1, 0)
+    S.lo = m.bmin[i]
+    S.hi = m.bmax[i]
+    S.centre = m.center[i]
+    S.radius = m.radius[i]
+    return S
 
 
 @wp.func
 def medium_sigma_t(m: Media, i: int, x: wp.vec3) -> wp.vec3:
-    """sigma_t of medium i at x (RGB, 1/unit)."""
-    if m.kind[i] == PARTICLES:
-        if not inside_box(x, m.bmin[i], m.bmax[i]):
-            return wp.vec3(0.0)
-        return particle_sigma_t(m.particles[m.index[i]], x)
-    return medium_density(m, i, x) * m.sigma[i]
+    """sigma_t of medium i at x (RGB, 1/unit): its kind's ``*_extinction``. An RBF or particle
+    medium is first tested against its bounds (its own lookup walks a hash grid)."""
+    kind = m.kind[i]
+    if kind == BOX or kind == SPHERE:
+        return shape_extinction(shape_of(m, i), m.sigma[i], x)
+    if kind == GRID:
+        return grid_extinction(m.grids[m.index[i]], m.sigma[i], x)
+    if not inside_box(x, m.bmin[i], m.bmax[i]):
+        return wp.vec3(0.0)
+    if kind == RBF:
+        return rbf_extinction(m.gaussians[m.index[i]], m.sigma[i], x)
+    return particle_extinction(m.particles[m.index[i]], m.sigma[i], x)
 
 
 @wp.func
 def is_heterogeneous(m: Media, i: int) -> bool:
-    return m.kind[i] >= GRID
+    """Whether medium i varies in space (a grid, RBFs, particles): not a homogeneous shape."""
+    return m.kind[i] != BOX and m.kind[i] != SPHERE
 
 
 @wp.func
@@ -192,9 +205,7 @@ def homogeneous_optical_depth(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: f
     for i in range(m.count):
         kind = m.kind[i]
         if kind == BOX or kind == SPHERE:
-            overlap = shape_length(kind == BOX, m.bmin[i], m.bmax[i], m.center[i], m.radius[i], o, d, t0, t1)
-            if overlap > 0.0:
-                tau += overlap * m.sigma[i]
+            tau += shape_tau(shape_of(m, i), m.sigma[i], o, d, t0, t1)
     return tau
 
 
@@ -207,8 +218,7 @@ def transmittance_estimate(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: floa
     w = float(1.0)
     for i in range(m.count):
         if m.kind[i] == GRID and w > 0.0:
-            t_end, wi = grid_tracking(m.grids[m.index[i]], o, d, t0, t1, m.sigma[i][c], True,
-                                      wp.rand_init(wp.randi(rng), STREAM))
+            wi, rng = grid_transmittance(m.grids[m.index[i]], m.sigma[i], o, d, t0, t1, c, rng)
             w *= wi
     return tr * w
 
@@ -222,9 +232,9 @@ def exact_optical_depth(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: float) 
     for i in range(m.count):
         kind = m.kind[i]
         if kind == PARTICLES:
-            tau += particle_optical_depth(m.particles[m.index[i]], -1, o, d, t0, t1)
+            tau += particle_tau(m.particles[m.index[i]], m.sigma[i], o, d, t0, t1)
         elif kind == RBF:
-            tau += rbf_optical_depth(m.gaussians[m.index[i]], o, d, t0, t1) * m.sigma[i]
+            tau += rbf_tau(m.gaussians[m.index[i]], m.sigma[i], o, d, t0, t1)
     return tau
 
 
@@ -273,22 +283,18 @@ def free_flight(m: Media, o: wp.vec3, d: wp.vec3, t0: float, t1: float, c: int, 
     who = int(-1)
     for i in range(m.count):
         kind = m.kind[i]
-        sig = m.sigma[i][c]
-        if sig > 0.0:
+        sigma = m.sigma[i]
+        if sigma[c] > 0.0:
             t = float(INF)
             hit = bool(False)
             if kind == BOX or kind == SPHERE:
-                a, b = shape_chord(kind == BOX, m.bmin[i], m.bmax[i], m.center[i], m.radius[i], o, d)
-                t = uniform_collision(wp.max(a, t0), wp.min(b, best), sig, wp.randf(rng))
-                hit = t < best
+                t, hit, rng = shape_free_flight(shape_of(m, i), sigma, o, d, t0, best, c, rng)
             elif kind == GRID:
-                th, w = grid_tracking(m.grids[m.index[i]], o, d, t0, best, sig, False, wp.rand_init(wp.randi(rng), STREAM))
-                t = th
-                hit = w > 0.0
+                t, hit, rng = grid_free_flight(m.grids[m.index[i]], sigma, o, d, t0, best, c, rng)
             elif kind == PARTICLES:
-                t, hit, rng = particle_free_flight(m.particles[m.index[i]], o, d, t0, best, c, rng)
+                t, hit, rng = particle_free_flight(m.particles[m.index[i]], sigma, o, d, t0, best, c, rng)
             else:
-                t, hit, rng = rbf_free_flight(m.gaussians[m.index[i]], o, d, t0, best, sig, rng)
+                t, hit, rng = rbf_free_flight(m.gaussians[m.index[i]], sigma, o, d, t0, best, c, rng)
             if hit:
                 best = t
                 who = i
