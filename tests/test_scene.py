@@ -128,3 +128,15 @@ def test_unknown_setting_and_technique():
         wv.render(BASE, technique="reference", spp=0)
     with pytest.raises(wv.SettingsError, match="unknown technique"):
         wv.render(BASE, technique="magic")
+
+
+def test_kinds_are_members_past_the_loader():
+    """Past the loader a light's and a medium's kind is a member of LightKind / MediumKind (named
+    by the member in the code, not by a string), still equal to and printed as its name."""
+    from warpvol.scene.model import Light, LightKind, MediumKind
+
+    scene = wv.load_scene("rbf-cornell")
+    assert all(isinstance(light.type, LightKind) for light in scene.lights)
+    assert all(isinstance(m.type, MediumKind) for m in scene.media)
+    assert scene.media[0].type is MediumKind.RBF and scene.media[0].type == "rbf" and f"{scene.media[0].type}" == "rbf"
+    assert Light("spot", strength=(1.0, 1.0, 1.0)).type is LightKind.SPOT

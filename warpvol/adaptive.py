@@ -15,6 +15,7 @@ from .metrics import error_scale, relative_rmse
 from .pipeline import Frame, SettingsError, has_sky
 from .renderer import Renderer, technique_class, technique_names
 from .scene import load_scene
+from .scene.model import MediumKind
 
 
 #: The reference stops at this fraction of ``target_error`` (see ``render_to_target``).
@@ -174,9 +175,9 @@ def _bias_applies(b, scene, current: dict, defaults: dict) -> bool:
     if b.when == "multiple":
         return bool(current.get("multiple_scattering", defaults.get("multiple_scattering")))
     if b.when == "rbf":
-        return any(m.type == "rbf" for m in scene.media)
+        return any(m.type == MediumKind.RBF for m in scene.media)
     if b.when == "heterogeneous":
-        return not all(m.type == "homogeneous" for m in scene.media)
+        return not all(m.type == MediumKind.HOMOGENEOUS for m in scene.media)
     return True
 
 

@@ -35,7 +35,7 @@ from .physics.sphere import fibonacci_directions
 from .physics.constants import INF
 from .pipeline import Bias, Setting, SettingsError, Stage, Technique
 from .scene import SceneError, load_scene
-from .scene.model import Camera, GridMedium, HomogeneousMedium, ParticleMedium, RBFMedium, Scene
+from .scene.model import Camera, GridMedium, HomogeneousMedium, MediumKind, ParticleMedium, RBFMedium, Scene
 
 
 def pinhole(camera: Camera) -> PinholeCamera:
@@ -146,7 +146,7 @@ LIGHT_VOLUME_BIAS = Bias("shadow_grid", exact=0, when="heterogeneous")
 def check_particle_scene(technique: str, scene: Scene) -> None:
     """Raise ``SettingsError`` unless the scene's media are all particle clouds (at least one)
     sharing one phase function: what the particle techniques render."""
-    bad = [f"media[{k}] of type {m.type}" for k, m in enumerate(scene.media) if m.type != "particles"]
+    bad = [f"media[{k}] of type {m.type}" for k, m in enumerate(scene.media) if m.type != MediumKind.PARTICLES]
     if bad or not scene.media:
         raise SettingsError(f"{technique}: renders particle media only (scene {scene.name!r} has "
                             f"{', '.join(bad) if bad else 'no media'}; allowed: type = \"particles\")")

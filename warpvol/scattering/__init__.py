@@ -72,6 +72,7 @@ import warp as wp
 from .. import device as dev
 from ..physics.sphere import fibonacci_directions
 from ..pipeline import Bias, Frame, Setting, SettingsError, Stage
+from ..scene.model import MediumKind
 from ..upload import MediaBuffers
 from .kernels import (Ends, ScatteredLight, add_order, bake_scattering, characteristics, light_source, phase_matrix,
                       reflect_at_ends, reflected_field, reflected_from_outside, scatter, scattered_light,
@@ -181,7 +182,7 @@ class MultipleScattering:
         # exact coefficients where every medium is homogeneous (cheap to read, and a sphere's edge
         # blurred over a cell dimmed a thick sphere lit from outside by 20%); not on graded lattices,
         # whose far cells, wider than the fog's own features, measured better interpolated
-        lat.exact = int(lat.graded == 0 and all(mm.type == "homogeneous" for mm in self.t.scene.media))
+        lat.exact = int(lat.graded == 0 and all(mm.type == MediumKind.HOMOGENEOUS for mm in self.t.scene.media))
         lat.directions = wp.array(fibonacci_directions(D), dtype=wp.vec3, device=self.t.device)
         return lat
 

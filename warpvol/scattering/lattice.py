@@ -10,6 +10,7 @@ import numpy as np
 import warp as wp
 
 from ..media.grid import lattice_at_vec3
+from ..scene.model import LightKind, MediumKind
 
 
 LATTICE_PAD = 1.0e-4  # the lattice's bounds pass the media's by this part of their extent
@@ -180,7 +181,7 @@ def cell_step(width: wp.vec3, w: wp.vec3) -> float:
 
 def light_positions(scene) -> list[np.ndarray]:
     """Where the point and spot lights are (directional lights have no position)."""
-    return [np.asarray(li.position, np.float64) for li in scene.lights if li.type in ("point", "spot")]
+    return [np.asarray(li.position, np.float64) for li in scene.lights if li.type in (LightKind.POINT, LightKind.SPOT)]
 
 
 def _first_hit(vertices: np.ndarray, faces: np.ndarray, o: np.ndarray, d: np.ndarray) -> float:
@@ -263,7 +264,7 @@ def focus(scene, lo: np.ndarray, hi: np.ndarray) -> tuple:
     the bounds only).
     (None, None, 0, False) where the media are not all homogeneous (a grid's or a cloud's own
     size is its set-up) or no box is left."""
-    if not scene.media or any(mm.type != "homogeneous" for mm in scene.media):
+    if not scene.media or any(mm.type != MediumKind.HOMOGENEOUS for mm in scene.media):
         return None, None, 0.0, False
     sigma = min(float(np.min(mm.sigma_t)) for mm in scene.media)
     if sigma <= 0.0:

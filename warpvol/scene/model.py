@@ -8,10 +8,34 @@ numpy arrays. ``warpvol.scene.load`` builds these from TOML or a dict and valida
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from enum import Enum
 
 import numpy as np
 
 Vec3 = tuple[float, float, float]
+
+
+class Kind(str, Enum):
+    """A kind named in a scene file, past the loader: a member, equal to (and formatted as) its name."""
+
+    def __str__(self) -> str:
+        return self.value
+
+    def __format__(self, spec: str) -> str:
+        return format(self.value, spec)
+
+
+class LightKind(Kind):
+    POINT = "point"
+    SPOT = "spot"
+    DIRECTIONAL = "directional"
+
+
+class MediumKind(Kind):
+    HOMOGENEOUS = "homogeneous"
+    GRID = "grid"
+    RBF = "rbf"
+    PARTICLES = "particles"
 
 
 @dataclass
@@ -27,13 +51,16 @@ class Camera:
 
 @dataclass
 class Light:
-    type: str  # point | spot | directional
+    type: LightKind  # point | spot | directional (the loader gives a LightKind; a name is taken too)
     strength: Vec3  # intensity (W/sr) for point and spot; irradiance for directional
     position: Vec3 = (0.0, 0.0, 0.0)
     direction: Vec3 = (0.0, -1.0, 0.0)  # travel direction (directional), cone axis (spot)
     inner_angle: float = 20.0  # spot: full strength inside this half-angle, degrees
     outer_angle: float = 30.0  # spot: zero outside this half-angle, degrees
     static: bool = True
+
+    def __post_init__(self):
+        self.type = LightKind(self.type)
 
 
 @dataclass
@@ -55,7 +82,7 @@ class Medium:
     static: bool = True
 
     @property
-    def type(self) -> str:
+    def type(self) -> MediumKind:
         raise NotImplementedError
 
 
@@ -68,8 +95,8 @@ class HomogeneousMedium(Medium):
     sigma_t: Vec3 = (1.0, 1.0, 1.0)
 
     @property
-    def type(self) -> str:
-        return "homogeneous"
+    def type(self) -> MediumKind:
+        return MediumKind.HOMOGENEOUS
 
 
 @dataclass
@@ -104,8 +131,8 @@ class GridMedium(Medium):
     volume_dims: tuple[int, int, int] = (1, 1, 1)  # samples along x, y, z
 
     @property
-    def type(self) -> str:
-        return "grid"
+    def type(self) -> MediumKind:
+        return MediumKind.GRID
 
     @property
     def dims(self) -> tuple[int, int, int]:
@@ -136,8 +163,8 @@ class RBFMedium(Medium):
         return radii, amps
 
     @property
-    def type(self) -> str:
-        return "rbf"
+    def type(self) -> MediumKind:
+        return MediumKind.RBF
 
 
 @dataclass
@@ -150,8 +177,8 @@ class ParticleMedium(Medium):
     block_size: int = 0
 
     @property
-    def type(self) -> str:
-        return "particles"
+    def type(self) -> MediumKind:
+        return MediumKind.PARTICLES
 
 
 @dataclass

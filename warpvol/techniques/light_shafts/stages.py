@@ -10,6 +10,7 @@ from ...pipeline import Stage, Technique
 from ...scattering import MultipleScattering
 from ...scattering import check_settings as check_ms_settings
 from ...scattering import leaves_out as ms_leaves_out
+from ...scene.model import MediumKind
 from ...shading import LightDepthVolume
 from ...upload import SceneUploads
 from .buffers import ShaftBuffers, tiled
@@ -83,7 +84,7 @@ class ShaftStages(Technique):
     def _view_samples(self) -> int:
         """Density samples along a pixel's view ray: one a step in heterogeneous media (their
         optical depth is marched), none where every medium has a closed form."""
-        return self.settings["steps"] if any(m.type != "homogeneous" for m in self.scene.media) else 0
+        return self.settings["steps"] if any(m.type != MediumKind.HOMOGENEOUS for m in self.scene.media) else 0
 
     def output(self):
         return self.image

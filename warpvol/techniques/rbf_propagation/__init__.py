@@ -94,6 +94,7 @@ from ...scattering import SETTINGS as MS_SETTINGS
 from ...scattering import MultipleScattering, ScatteredLight, scattered_light, scattered_on_surface
 from ...scattering import check_settings as check_ms_settings
 from ...scattering import leaves_out as ms_leaves_out
+from ...scene.model import MediumKind
 from ...shading import reflected
 from ...upload import MediaBuffers, SceneUploads, pinhole
 from .volumes import Volume, Volumes, grid_volume, march_inputs
@@ -487,12 +488,12 @@ class RBFPropagation(Technique):
         n = self.settings["grid"]
         self.volume = v = grid_volume(self.scene, n)
         self.ev = wp.zeros(n**3, dtype=wp.vec3, device=self.device)
-        others = [m for m in self.scene.media if m.type != "rbf"]
+        others = [m for m in self.scene.media if m.type != MediumKind.RBF]
         if others:
             buffers = MediaBuffers(dataclasses.replace(self.scene, media=others), self.device)
             dev.launch(sample_extinction, n**3, [buffers.struct, v.lo, v.hi, v.n, self.ev], self.device)
         for m in self.scene.media:
-            if m.type == "rbf" and len(m.centers):
+            if m.type == MediumKind.RBF and len(m.centers):
                 centres = wp.array(np.asarray(m.centers, np.float32), dtype=wp.vec3, device=self.device)
                 # atomics: one chunk keeps the adds race-free on the CPU as on the GPU
                 radii, amps = (wp.array(a, dtype=float, device=self.device) for a in m.gaussians())

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...scene.model import LightKind
+
 
 def shell_plan(lights, v, n: int) -> tuple[np.ndarray, np.ndarray, int]:
     """The wavefront's plan for the ``lights`` over the n^3 grid ``v`` (a ``Volume``): per light
@@ -16,7 +18,7 @@ def shell_plan(lights, v, n: int) -> tuple[np.ndarray, np.ndarray, int]:
     lo, h = np.asarray(v.lo, np.float32), np.asarray(v.h, np.float32)
     cells, base, spread = [], [], [0]
     for light in lights:
-        if light.type == "directional":  # offsets from the upwind corner: 0 .. n - 1 on each axis used
+        if light.type == LightKind.DIRECTIONAL:  # offsets from the upwind corner: 0 .. n - 1 on each axis used
             cells.append((0, 0, 0))
             base.append(0)
             spread.append(int(np.sum(np.asarray(light.direction) != 0)) * (n - 1))
@@ -36,4 +38,4 @@ def shell_plan(lights, v, n: int) -> tuple[np.ndarray, np.ndarray, int]:
 def solve_axes(lights) -> list[int]:
     """Per light, the axis a shell thread solves for: one the light travels along (z for a point
     or spot light)."""
-    return [2 if light.type != "directional" else int(np.argmax(np.abs(light.direction))) for light in lights]
+    return [2 if light.type != LightKind.DIRECTIONAL else int(np.argmax(np.abs(light.direction))) for light in lights]
