@@ -21,7 +21,8 @@ from . import device as dev
 from .geometry.intersect import inside_box, ray_box
 from .geometry.mesh import Surfaces, occluded, surface_hit
 from .geometry.shadowmap import ShadowedLights, shadow_visibility, texel_world_size
-from .media.volume import Media, exact_media, exact_optical_depth, grid_sigma_t_at, in_scatter_at, transmittance_estimate
+from .media.volume import (Media, exact_media, exact_optical_depth, grid_sigma_t_at, in_scatter_at, in_scatter_from,
+                           transmittance_estimate)
 from .physics.brdf import Material, brdf_eval
 from .physics.constants import INF, PI, RAY_EPS, STREAM
 from .physics.lights import (Emitter, angle_point, angle_samples, angle_share, light_incident, step_angle,
@@ -197,12 +198,13 @@ class LightDepthVolume:
 
 @wp.func
 def step_in_scatter_through_maps(m: Media, sl: ShadowedLights, l: int, o: wp.vec3, d: wp.vec3, t0: float, dt: float,
-                                 shadow_steps: int) -> wp.vec3:
+                                 sig_s: wp.vec3, shadow_steps: int) -> wp.vec3:
     """Light l's single scattering toward -d, per unit length, over the march step [t0, t0 + dt]
     of o + t d, past the surfaces by its shadow map and through the media (``light_arriving``):
     at the step's midpoint with the step's mean 1/d^2, or, where the step subtends more than
     ANGLE_STEP at a point or spot light, at equiangular points (``physics.lights.step_angle``),
-    each with its own phase function, shadow and falloff, as raymarch's step."""
+    each with its own phase function, shadow and falloff, as raymarch's step. ``sig_s``: the
+    scattering coefficient at the step's midpoint, looked up already (``coefficients_at``)."""
     light = sl.lights[l]
     tc, h, phi = step_angle(light, o, d, t0, t0 + dt)
     na = angle_samples(phi)  # 1 but beside a point or spot light
@@ -217,7 +219,12 @@ def step_in_scatter_through_maps(m: Media, sl: ShadowedLights, l: int, o: wp.vec
                 e = angle_share(light, e, dist, h, phi, na, dt)
             else:
                 e = step_mean_irradiance(light, e, dist, o, d, t0, t0 + dt)
-            acc += wp.cw_mul(wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e), transmittance_rgb(tau))
+            ph = wp.vec3(0.0)
+            if na > 1:  # an equiangular point: its own lookup
+                ph = in_scatter_at(m, x, wp.dot(d, wi))
+            else:  # the step's midpoint, looked up already
+                ph = in_scatter_from(m, x, sig_s, wp.dot(d, wi))
+            acc += wp.cw_mul(wp.cw_mul(ph, e), transmittance_rgb(tau))
     return acc
 
 

@@ -262,7 +262,7 @@ def march_glow(offset: int, cam: RasterView, m: Media, s: Surfaces, sl: Shadowed
             if sig[0] > 0.0 or sig[1] > 0.0 or sig[2] > 0.0:
                 src = wp.vec3(0.0)
                 for l in range(sl.lights.shape[0]):  # I_o: the direct sample, over the step
-                    src += step_in_scatter_through_maps(m, sl, l, o, d, ta + float(k) * dt, dt, gs.shadow_steps)
+                    src += step_in_scatter_through_maps(m, sl, l, o, d, ta + float(k) * dt, dt, sig_s, gs.shadow_steps)
                 if ms.lat.n > 0:  # the light scattered more than once, solved (in place of the glow)
                     src += scattered_light(ms, sig_s, x)
                 elif gs.glow != 0 and sl.lights.shape[0] > 0:  # I_s: the nearby particles' light
