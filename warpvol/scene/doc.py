@@ -233,7 +233,7 @@ def page() -> str:
     keys = recorded_keys()
     lines = ["# Scene format", "",
              "<!-- written by `python -m warpvol docs` from the scene loader (warpvol/scene/load.py, "
-             "warpvol/scene/doc.py); do not edit by hand -->", "",
+             "media_tables.py, tables.py and doc.py); do not edit by hand -->", "",
              "A scene is a TOML file (or the same layout as a Python dict, where arrays may be numpy "
              "arrays). Paths are relative to the scene file. Every key is checked on load: an unknown "
              "key, a wrong type or a value out of range fails before anything renders, with a message "
