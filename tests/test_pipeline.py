@@ -207,6 +207,30 @@ def test_every_stage_declares_the_settings_it_reads(technique):
         assert r._pipeline.undeclared == {}, f"{technique} on {name}"
 
 
+#: Attributes two stages may both assign, and why: the network's ping-pong radiance buffers are
+#: allocated (sized) by ``network`` and swapped each iteration by ``iterate``, whose state they are.
+SHARED_STATE = {"illumination_network": {"I", "I_next"}}
+
+
+@pytest.mark.parametrize("technique", list(AUDITED))
+def test_each_stage_writes_only_its_own_outputs(technique):
+    """Under audit the pipeline notes which technique attributes each stage assigns: an output two
+    stages assign is one that a stage re-running could overwrite behind the other's cache. Two
+    frames, the second with every part changed, so that every stage runs twice."""
+    for name in AUDITED[technique]:
+        scene = wv.load_scene(name, ["camera.width=16", "camera.height=12"])
+        settings = {"spp": 2} if technique == "reference" else {}
+        r = wv.Renderer(scene, technique=technique, device="cpu", **settings)
+        r._pipeline.audit = True
+        r.render()
+        r.update(camera=dict(origin=[0.1, 0.3, 4.0]))
+        r.touch()
+        r.render()
+        assert set(r._pipeline.written), f"{technique} on {name}: the audit saw no stage assign anything"
+        shared = {k: v for k, v in r._pipeline.shared_writes.items() if k not in SHARED_STATE.get(technique, ())}
+        assert shared == {}, f"{technique} on {name}: attributes assigned by more than one stage"
+
+
 @pytest.mark.parametrize("technique", ["raymarch", "particle_glow", "light_shafts", "rbf_propagation"])
 def test_a_march_fills_the_cores_when_its_pixels_are_few(monkeypatch, technique):
     """A march's launch is split over the CPU cores by its work, pixels times steps, not by its

@@ -51,11 +51,14 @@ class Pipeline:
 
     With ``audit`` on, each stage runs with the technique's settings wrapped so that every key
     it reads is noted; ``undeclared`` then maps a stage to the settings it read but does not
-    declare (its cache key would miss a change to them: a stale image)."""
+    declare (its cache key would miss a change to them: a stale image). The attributes of the
+    technique each stage assigns are noted too (``written``): ``shared_writes`` lists those more
+    than one stage assigns, an output one stage could overwrite behind another's cache."""
 
     def __init__(self, technique: Technique, audit: bool = False):
         self.audit = audit
         self.undeclared: dict[str, set[str]] = {}
+        self.written: dict[str, set[str]] = defaultdict(set)  # technique attribute -> stages that assigned it
         self.technique = technique
         self.versions = dict.fromkeys(PARTS, 0)
         self._keys: dict[str, tuple] = {}  # stage -> cache key it last ran with
@@ -105,6 +108,7 @@ class Pipeline:
                 continue
             t0 = time.perf_counter()
             if self.audit:
+                before = {k: id(v) for k, v in vars(self.technique).items()}
                 log = self.technique.settings = _ReadLog(settings)
                 try:
                     changed = stage.run()
@@ -113,6 +117,9 @@ class Pipeline:
                 extra = log.read - set(stage.settings)
                 if extra:
                     self.undeclared.setdefault(stage.name, set()).update(extra)
+                for k, v in vars(self.technique).items():
+                    if k != "settings" and before.get(k) != id(v):
+                        self.written[k].add(stage.name)
             else:
                 changed = stage.run()
             wp.synchronize_device(device)
@@ -121,6 +128,11 @@ class Pipeline:
             if changed is not False:  # False: it ran and found its outputs as they were
                 runs[stage.name] += 1
         return out
+
+    @property
+    def shared_writes(self) -> dict[str, set[str]]:
+        """The technique's attributes that more than one stage assigned under audit."""
+        return {k: v for k, v in self.written.items() if len(v) > 1}
 
     def run_stage(self, name: str) -> float:
         """Run one stage now, on the outputs the last frame left, and return its
