@@ -193,17 +193,26 @@ AUDITED = {"raymarch": ("fog-box", "smoke-grid", "hazy-sun"), "light_shafts": ("
            "reference": ("fog-box",)}
 
 
+def _audited(technique: str, name: str):
+    """A Renderer of ``technique`` on built-in ``name`` (16x12) after two frames under audit, the
+    second with every scene part changed, so that every stage the scene calls for ran twice."""
+    scene = wv.load_scene(name, ["camera.width=16", "camera.height=12"])
+    r = wv.Renderer(scene, technique=technique, device="cpu", **({"spp": 2} if technique == "reference" else {}))
+    r._pipeline.audit = True
+    r.render()
+    r.update(camera=dict(origin=[0.1, 0.3, 4.0]))
+    r.touch()
+    r.render()
+    return r
+
+
 @pytest.mark.parametrize("technique", list(AUDITED))
 def test_every_stage_declares_the_settings_it_reads(technique):
     """Run each technique's stages with its settings wrapped (``Pipeline.audit``): a setting a
     stage reads but does not declare is one its cache key misses, so changing it would serve a
     stale image. Small built-in scenes that between them call every stage."""
     for name in AUDITED[technique]:
-        scene = wv.load_scene(name, ["camera.width=16", "camera.height=12"])
-        settings = {"spp": 2} if technique == "reference" else {}
-        r = wv.Renderer(scene, technique=technique, device="cpu", **settings)
-        r._pipeline.audit = True
-        r.render()
+        r = _audited(technique, name)
         assert r._pipeline.undeclared == {}, f"{technique} on {name}"
 
 
@@ -215,17 +224,9 @@ SHARED_STATE = {"illumination_network": {"I", "I_next"}}
 @pytest.mark.parametrize("technique", list(AUDITED))
 def test_each_stage_writes_only_its_own_outputs(technique):
     """Under audit the pipeline notes which technique attributes each stage assigns: an output two
-    stages assign is one that a stage re-running could overwrite behind the other's cache. Two
-    frames, the second with every part changed, so that every stage runs twice."""
+    stages assign is one that a stage re-running could overwrite behind the other's cache."""
     for name in AUDITED[technique]:
-        scene = wv.load_scene(name, ["camera.width=16", "camera.height=12"])
-        settings = {"spp": 2} if technique == "reference" else {}
-        r = wv.Renderer(scene, technique=technique, device="cpu", **settings)
-        r._pipeline.audit = True
-        r.render()
-        r.update(camera=dict(origin=[0.1, 0.3, 4.0]))
-        r.touch()
-        r.render()
+        r = _audited(technique, name)
         assert set(r._pipeline.written), f"{technique} on {name}: the audit saw no stage assign anything"
         shared = {k: v for k, v in r._pipeline.shared_writes.items() if k not in SHARED_STATE.get(technique, ())}
         assert shared == {}, f"{technique} on {name}: attributes assigned by more than one stage"
