@@ -33,6 +33,11 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
           "and per pixel along its chord, still and drifting through the plane, "
           "against the single-scattering reference over the seam and over the image, 96x96", "depth_impostors", "table", depth_impostors.impostor_clipping_grid,
           depth_impostors.impostor_clipping, note=depth_impostors.CLIP_NOTE),
+    Sweep("depth-impostors-inside", "a camera inside a cloud (Umenhoffer & Szirmay-Kalos 2005): 300 particles "
+          "around the eye, three holding it, billboards and depth impostors, each particle shaded as a whole (the "
+          "paper) and per pixel along its chord, against the single-scattering reference, 96x72", "depth_impostors",
+          "table", depth_impostors.impostor_inside_grid, depth_impostors.impostor_inside,
+          note=depth_impostors.INSIDE_NOTE),
     Sweep("particle-glow-figure5", "particle_glow: the glowy-light paper figure 5's density distributions (mu, sigma; A: 2, "
           "0.1; B: 0, 0.1), the defaults (0.5, 0.5), log-normal (cdf 0, the text) and normal (cdf 1, equation 2 as "
           "printed) CDFs, dusty-lamp 320x240", "particle_glow", "table", particle_glow.glow_figure5_grid, particle_glow.glow_figure5),

@@ -366,3 +366,53 @@ def impostor_clipping(params: dict, device: str, quick: bool) -> dict:
     row["scene"] = f"impostor-clipping {CLIP_GRID ** 2} large particles straddling a plane, {w}x{w}"
     row["scene_table"] = table
     return row
+
+
+INSIDE_NOTE = ("A camera inside a cloud: 300 particles (radius 0.3, sigma_t 2, albedo 0.9, HG 0.3) spread over a "
+               "2.4-unit cube around the eye, three of them holding the eye, under a sun; the technique against the "
+               "single-scattering reference at pixel centres, the light pass at its default (depth slices). *eye inside*: the spheres that hold the eye; *mean / "
+               "reference*: the image's mean over the reference's. A sphere that holds the eye is seen from inside: "
+               "*sphere* shading gives it the one radiance of the whole sphere, lit side included, over the chord "
+               "from the eye to its far side; *chord* shades that chord at the depth its light comes from.")
+
+
+def inside_table(quick: bool) -> dict:
+    """300 particles around the eye, three of them holding it (a table: the positions listed)."""
+    rng = np.random.default_rng(3)
+    pos = rng.uniform(-1.2, 1.2, (300, 3))
+    pos[:3] = [[0.05, 0.0, -0.05], [-0.1, 0.05, 0.1], [0.1, -0.12, 0.0]]  # spheres that hold the eye
+    w, h = (24, 18) if quick else (96, 72)
+    return {"name": "inside-cloud", "background": [0.05, 0.07, 0.1],
+            "camera": {"origin": [0.0, 0.0, 0.0], "target": [0.0, 0.0, -1.0], "fov_y": 60.0, "width": w, "height": h},
+            "lights": [IMPOSTOR_SUN],
+            "media": [{"type": "particles", "positions": [[round(float(x), 6) for x in p] for p in pos], "radius": 0.3,
+                       "sigma_t": 2.0, "albedo": 0.9, "phase": {"type": "hg", "g": 0.3}}]}
+
+
+def impostor_inside_grid(quick: bool) -> list[dict]:
+    return [{"object_depth": k, "particle_shading": sh} for sh in ("sphere", "chord") for k in ("billboards", "impostors")]
+
+
+def impostor_inside(params: dict, device: str, quick: bool) -> dict:
+    """Depth impostors with the camera inside the cloud, some particles holding the eye, against
+    the single-scattering reference."""
+    table = inside_table(quick)
+    scene = wv.load_scene(table)
+    r = wv.Renderer(scene, technique="depth_impostors", multiple_scattering=0, device=device,
+                    object_depth=params["object_depth"], particle_shading=params["particle_shading"])
+    row = time_frames(r, repeats=2 if quick else 5, invalidate=("medium", "lights"))
+    ref = score(row, scene, device, 16 if quick else 256, error_map=params == {"object_depth": "impostors",
+                                                                               "particle_shading": "chord"})
+    m = scene.media[0]
+    eye = np.asarray(scene.camera.origin, float)
+    row["table"] = {"error": row["rel_rmse_corrected"], "HDR-FLIP": row["hdr_flip"],
+                    "mean / reference": float(row["frame"].image.mean() / ref.mean()),
+                    "eye inside": int(np.sum(np.linalg.norm(np.asarray(m.positions, float) - eye, axis=1) < m.radius)),
+                    "reference noise": row["reference"]["rel_rmse_floor"]}
+    if params["object_depth"] == "impostors":
+        row.setdefault("images", {})["image"] = row["frame"].image
+        if params["particle_shading"] == "chord":
+            row["images"]["reference"] = ref
+    row["scene"] = f"inside-cloud 300 particles around the eye, {scene.camera.width}x{scene.camera.height}"
+    row["scene_table"] = table
+    return row
