@@ -225,6 +225,28 @@ def test_a_choice_takes_its_name():
     assert "must be an integer" in str(err.value)
 
 
+def test_an_on_off_setting_takes_on_off_and_booleans():
+    """Every 0/1 setting is a flag by name (``names=FLAG``): "on" / "off" through the API and
+    ``--set``, and True / False from Python, stored as 1 / 0; a number setting still refuses a bool."""
+    from warpvol.cli import _parse_set
+    from warpvol.pipeline import FLAG, resolve_settings
+    from warpvol.techniques import TECHNIQUES
+
+    flags = [(t, k) for t, cls in TECHNIQUES.items() for k, s in cls.SETTINGS.items()
+             if isinstance(s.default, int) and (s.lo, s.hi) == (0, 1) and not (s.names and s.names != FLAG)]
+    assert len(flags) >= 9 and all(TECHNIQUES[t].SETTINGS[k].names == FLAG for t, k in flags), flags
+    spec = TECHNIQUES["illumination_network"].SETTINGS
+    got = resolve_settings("illumination_network", spec, {"warm": False, "half": "on"})
+    assert (got["warm"], got["half"]) == (0, 1) and type(got["warm"]) is int
+    settings, _ = _parse_set(["warm=off"], "illumination_network")
+    assert resolve_settings("illumination_network", spec, settings)["warm"] == 0
+    with pytest.raises(wv.SettingsError) as err:
+        resolve_settings("illumination_network", spec, {"warm": "maybe"})
+    assert "(allowed: 0 or 'off', 1 or 'on';" in str(err.value), str(err.value)
+    with pytest.raises(wv.SettingsError):
+        resolve_settings("illumination_network", spec, {"directions": True})
+
+
 # --- 6. messages that pointed the wrong way ------------------------------------------------------
 
 def test_setting_of_another_technique(tmp_path, capsys):

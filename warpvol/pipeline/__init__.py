@@ -22,8 +22,8 @@ The package: ``settings`` (Setting, resolve_settings, SettingsError, Quality, Bi
 
 from .frame import Frame
 from .graph import Pipeline, dynamic_parts
-from .settings import Bias, Quality, Setting, SettingsError, resolve_settings
+from .settings import FLAG, Bias, Quality, Setting, SettingsError, resolve_settings
 from .technique import PARTS, Stage, StageRun, Technique, has_sky
 
-__all__ = ["PARTS", "Bias", "Frame", "Pipeline", "Quality", "Setting", "SettingsError", "Stage", "StageRun",
+__all__ = ["FLAG", "PARTS", "Bias", "Frame", "Pipeline", "Quality", "Setting", "SettingsError", "Stage", "StageRun",
            "Technique", "dynamic_parts", "has_sky", "resolve_settings"]

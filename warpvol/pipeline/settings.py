@@ -15,6 +15,11 @@ class SettingsError(ValueError):
     """A technique setting with an unknown name or a value out of range."""
 
 
+#: The names of an on/off setting's values 0 and 1 (``names=FLAG``): ``warm="off"``, ``--set warm=on``,
+#: and from Python ``False`` / ``True`` too.
+FLAG = ("off", "on")
+
+
 @dataclass
 class Setting:
     """A technique's setting: its default, its range [lo, hi] and what it does. ``names``: for a
@@ -52,6 +57,8 @@ def resolve_settings(technique: str, spec: dict[str, Setting], given: dict, base
         s = spec[key]
         kind = type(s.default)
         allowed = f"allowed: {s.allowed()}; {s.doc}"
+        if isinstance(value, bool) and s.names == FLAG:
+            value = int(value)
         if isinstance(value, str) and s.names:
             if value not in s.names:
                 raise SettingsError(f"{technique}: setting {key}={value!r} is not one of its names{did_you_mean(value, s.names)} "

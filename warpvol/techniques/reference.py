@@ -54,7 +54,7 @@ from ..physics.phase import phase_eval, phase_sample
 from ..physics.sampling import (equiangular_pdf, equiangular_sample, exponential_pdf, orthonormal_basis,
                                 power_heuristic, sample_exponential)
 from ..physics.transmittance import transmittance_rgb
-from ..pipeline import Quality, Setting, Stage, Technique
+from ..pipeline import FLAG, Quality, Setting, Stage, Technique
 from ..shading import light_transmittance, surface_direct
 from ..upload import SceneUploads, pinhole
 
@@ -64,7 +64,8 @@ NAME = "reference"
 SETTINGS = {
     "spp": Setting(64, 1, 1 << 24, "samples per pixel"),
     "max_bounces": Setting(-1, -1, 1 << 20, "scattering events per path; 1 = single scattering, -1 = unlimited"),
-    "pixel_area": Setting(1, 0, 1, "1: sample the pixel's area (box filter); 0: its centre, as real-time techniques do"),
+    "pixel_area": Setting(1, 0, 1, "1: sample the pixel's area (box filter); 0: its centre, as real-time techniques do",
+                          names=FLAG),
     "seed": Setting(0, 0, 2**31 - 1, "random seed"),
 }
 

@@ -75,7 +75,7 @@ from ...media.particles import BlockCloud, ParticleBuffers
 from ...physics.constants import INF
 from ...physics.lights import Emitter
 from ...physics.phase import phase_fn, phase_struct
-from ...pipeline import Bias, Quality, Setting, Stage, Technique
+from ...pipeline import FLAG, Bias, Quality, Setting, Stage, Technique
 from ...scattering import BIASES as MS_BIASES
 from ...scattering import SETTINGS as MS_SETTINGS
 from ...scattering import MultipleScattering
@@ -104,7 +104,7 @@ SETTINGS = {
     "light_texels": Setting(0, 0, 1024, "light-pass texels per face side; 0: 4 R / r (half a median radius)"),
     "light_blocks": Setting(1, 0, 1, "1: a cloud built of blocks is splatted into the light pass block by block, "
                                      "from one light impostor per template (section 2, b + N / b work; directional "
-                                     "lights and the sky); 0: particle by particle"),
+                                     "lights and the sky); 0: particle by particle", names=FLAG),
     "light_samples": Setting(4, 1, 1024, "points of a one-particle instance whose light is averaged"),
     "sky_samples": Setting(8, 0, 256, "directions the sky's light (the scene's background) is gathered from, each "
                                        "through its own coarse light pass; 0: no sky light"),

@@ -97,7 +97,7 @@ from ...media.particles import ParticleBuffers, Particles
 from ...physics.constants import INV_4PI
 from ...physics.phase import PhaseParams, phase_fn, phase_struct
 from ...physics.sphere import fibonacci_directions
-from ...pipeline import Bias, Quality, Setting, SettingsError, Stage, Technique
+from ...pipeline import FLAG, Bias, Quality, Setting, SettingsError, Stage, Technique
 from ...upload import SceneUploads, check_particle_scene, particle_buffers, pinhole
 from .kernels import (ROWS, DirectLight, change_norms, composite, composite_march, emission_network, gather_update,
                       light_weights, outgoing_radiance, particle_extinction, rescale, scatter_matmul)
@@ -118,12 +118,12 @@ SETTINGS = {
                                      "the window of the default D while it raises D)"),
     "iterations": Setting(1, 0, 1 << 20, "iterations per frame (the paper: 1)"),
     "tolerance": Setting(1e-4, 0.0, 1.0, "settle once an iteration changes I by under this (relative L2); 0: never"),
-    "warm": Setting(1, 0, 1, "1: start from the previous solution when the lights change; 0: from zero"),
-    "half": Setting(0, 0, 1, "1: store I and E as float16, as the paper does"),
+    "warm": Setting(1, 0, 1, "1: start from the previous solution when the lights change; 0: from zero", names=FLAG),
+    "half": Setting(0, 0, 1, "1: store I and E as float16, as the paper does", names=FLAG),
     "phase_norm": Setting(1, 0, 1, "1: the phase matrix scaled doubly stochastic (rows and columns sum to 1; energy "
                                    "conserving for any lobe) and each light's emission normalised over the D "
                                    "directions; 0: the paper's weights 4 pi / D (diverges for peaked lobes, "
-                                   "e.g. HG g >= 0.9 at D = 128)"),
+                                   "e.g. HG g >= 0.9 at D = 128)", names=FLAG),
     "light_samples": Setting(16, 1, 1024, "points of a sphere whose transmittance to a light is averaged (1: centre)"),
     "light_pass": Setting(1, 0, 2, "transmittance to the lights: 0 exact (BVH ray queries), 1 depth slices, "
                                    "2 Fourier opacity map (media/lightpass.py)",

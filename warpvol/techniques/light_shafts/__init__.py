@@ -93,7 +93,7 @@ from ...physics.constants import INF, RAY_EPS
 from ...physics.lights import (Emitter, angle_point, angle_samples, angle_share, ball_chord, step_angle,
                                step_mean_irradiance)
 from ...physics.transmittance import transmittance_rgb
-from ...pipeline import Bias, Quality, Setting
+from ...pipeline import FLAG, Bias, Quality, Setting
 from ...scattering import BIASES as MS_BIASES
 from ...scattering import SETTINGS as MS_SETTINGS
 from ...scattering import ScatteredLight, scattered_light, scattered_on_surface
@@ -112,8 +112,8 @@ SETTINGS = {
     "block": Setting(4, 1, 32, "M: interleaving block size (1 = every pixel takes all N samples)"),
     "shadow_map_res": Setting(256, 4, 8192, "texels per side of each shadow map (cube maps: per face)"),
     "depth_bias": Setting(0.02, 0.0, 1.0e3, "shadow-map depth bias, scene units"),
-    "jitter": Setting(1, 0, 1, "1: random sample offset per pixel (no banding); 0: step midpoints"),
-    "scattering": Setting(1, 0, 1, "0: surfaces only (the paper's 'no scattering' row)"),
+    "jitter": Setting(1, 0, 1, "1: random sample offset per pixel (no banding); 0: step midpoints", names=FLAG),
+    "scattering": Setting(1, 0, 1, "0: surfaces only (the paper's 'no scattering' row)", names=FLAG),
     "shadow_steps": Setting(32, 1, 1 << 16, "steps toward a light through grid media (the others: closed form)"),
     "seed": Setting(0, 0, 2**31 - 1, "random seed of the jitter"),
     "spacing": Setting(1, 0, 1, "0: the paper's dl = s / N per ray; 1: dl = (media segment) / N, shared by neighbours",
@@ -125,7 +125,7 @@ SETTINGS = {
                             names=("auto", "triangles", "pieces")),
     "edges": Setting(1, 0, 1, "1: the block sum keeps to neighbours at a similar depth and rescales for the samples it "
                      "leaves out (no halo at depth jumps; its error there and its cost: results/light-shafts-edges); "
-                     "0: the paper's plain separable sum"),
+                     "0: the paper's plain separable sum", names=FLAG),
     "edge_tolerance": Setting(0.1, 0.0, 10.0,
                               "edges = 1: relative depth difference beyond which a neighbour is left out"),
     "light_ball": Setting(4.0, 0.0, 64.0, "radius, in M-pixel blocks at the light's distance, of the ball around each "

@@ -88,7 +88,7 @@ from ...physics.constants import INF
 from ...physics.lights import DIRECTIONAL, Emitter, angle_point, angle_samples, angle_share, light_incident, step_angle
 from ...physics.phase import phase_eval
 from ...physics.transmittance import step_integral_rgb, transmittance_rgb
-from ...pipeline import Quality, Setting, Stage, Technique
+from ...pipeline import FLAG, Quality, Setting, Stage, Technique
 from ...scattering import BIASES as MS_BIASES
 from ...scattering import SETTINGS as MS_SETTINGS
 from ...scattering import MultipleScattering, ScatteredLight, scattered_light, scattered_on_surface
@@ -108,7 +108,7 @@ SETTINGS = {
     "steps": Setting(64, 1, 1 << 16, "ray-march steps across the grid's diagonal"),
     "rule": Setting(1, 0, 1, "0: the paper's equation 6 as printed; 1: corrected, optical depth in physical units",
                     names=("printed", "corrected")),
-    "wavefront": Setting(1, 0, 1, "1: update only the wavefront shell per step; 0: sweep the whole grid"),
+    "wavefront": Setting(1, 0, 1, "1: update only the wavefront shell per step; 0: sweep the whole grid", names=FLAG),
     "iterations": Setting(0, 0, 1 << 16, "whole-grid sweeps when wavefront = 0 (0: 3 x grid)"),
     **MS_SETTINGS,
 }
