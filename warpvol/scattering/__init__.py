@@ -140,6 +140,13 @@ class MultipleScattering:
         self.ratio = np.zeros(3)  # the last ratio of successive orders
         self.sigma_s = None
 
+    @classmethod
+    def over(cls, technique, uploads, media: bool = True) -> "MultipleScattering":
+        """The solver over a technique's scene uploads (``upload.SceneUploads``): its surfaces, its
+        lights and, with ``media``, its media struct, each read when a stage runs."""
+        return cls(technique, lambda: uploads.surfaces, lambda: uploads.lights,
+                   (lambda: uploads.media.struct) if media else None)
+
     @property
     def n(self) -> int:
         return self.t.settings["multiple_scattering"] if self.t.scene.media else 0

@@ -292,8 +292,7 @@ class ParticleGlow(Technique):
     def __init__(self, scene, device, settings, progress=False):
         super().__init__(scene, device, settings, progress)
         self.uploads = SceneUploads(self)
-        self.multiple = MultipleScattering(self, lambda: self.uploads.surfaces, lambda: self.uploads.lights,
-                                           lambda: self.uploads.media.struct)
+        self.multiple = MultipleScattering.over(self, self.uploads)
         self.density = self.weight = self.direction = None
         self.g0 = self.gn = None
         self.sl: ShadowedLights | None = None

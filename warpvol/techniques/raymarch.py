@@ -242,8 +242,7 @@ class Raymarch(Technique):
     def __init__(self, scene, device, settings, progress=False):
         super().__init__(scene, device, settings, progress)
         self.uploads = SceneUploads(self)
-        self.multiple = MultipleScattering(self, lambda: self.uploads.surfaces, lambda: self.uploads.lights,
-                                           lambda: self.uploads.media.struct)
+        self.multiple = MultipleScattering.over(self, self.uploads)
         self.baked = wp.zeros(1, dtype=wp.vec3, device=device)
         self.image = None
 

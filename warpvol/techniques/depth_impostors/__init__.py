@@ -138,7 +138,7 @@ class DepthImpostors(Technique):
         super().__init__(scene, device, settings, progress)
         check_particle_scene(NAME, scene)
         self.uploads = SceneUploads(self, medium=False)
-        self.multiple = MultipleScattering(self, lambda: self.uploads.surfaces, lambda: self.uploads.lights)
+        self.multiple = MultipleScattering.over(self, self.uploads, media=False)
         self._cloud: ParticleBuffers | None = None
         self._template_key: tuple | None = None  # what the impostors were made from
         self.layout: BlockLayout | None = None  # the blocks: templates and their instances

@@ -24,8 +24,7 @@ class ShaftStages(Technique):
     def __init__(self, scene, device, settings, progress=False):
         super().__init__(scene, device, settings, progress)
         self.uploads = SceneUploads(self)
-        self.multiple = MultipleScattering(self, lambda: self.uploads.surfaces, lambda: self.uploads.lights,
-                                           lambda: self.uploads.media.struct)
+        self.multiple = MultipleScattering.over(self, self.uploads)
         self.light_volume = LightDepthVolume(self, lambda: self.uploads.media.struct, lambda: self.uploads.lights)
         self.shadows = ShadowMaps(self, self.light_volume)
         self.buffers = ShaftBuffers(device)

@@ -462,7 +462,7 @@ class RBFPropagation(Technique):
     def __init__(self, scene, device, settings, progress=False):
         super().__init__(scene, device, settings, progress)
         self.uploads = SceneUploads(self, medium=False)  # the EV replaces the media's own buffers
-        self.multiple = MultipleScattering(self, lambda: self.uploads.surfaces, lambda: self.uploads.lights)
+        self.multiple = MultipleScattering.over(self, self.uploads, media=False)
         self.ev = self.opv = self.image = None
         self.volume = None
         self.launches = 0  # propagation launches of the last propagate stage
