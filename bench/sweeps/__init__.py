@@ -34,7 +34,7 @@ SWEEPS: dict[str, Sweep] = {s.name: s for s in [
           "against the single-scattering reference over the seam and over the image, 96x96", "depth_impostors", "table", depth_impostors.impostor_clipping_grid,
           depth_impostors.impostor_clipping, note=depth_impostors.CLIP_NOTE),
     Sweep("depth-impostors-inside", "a camera inside a cloud (Umenhoffer & Szirmay-Kalos 2005): 300 particles "
-          "around the eye, three holding it, billboards and depth impostors, each particle shaded as a whole (the "
+          "around the eye, four holding it, billboards and depth impostors, each particle shaded as a whole (the "
           "paper) and per pixel along its chord, against the single-scattering reference, 96x72", "depth_impostors",
           "table", depth_impostors.impostor_inside_grid, depth_impostors.impostor_inside,
           note=depth_impostors.INSIDE_NOTE),

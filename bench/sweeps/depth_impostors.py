@@ -369,15 +369,16 @@ def impostor_clipping(params: dict, device: str, quick: bool) -> dict:
 
 
 INSIDE_NOTE = ("A camera inside a cloud: 300 particles (radius 0.3, sigma_t 2, albedo 0.9, HG 0.3) spread over a "
-               "2.4-unit cube around the eye, three of them holding the eye, under a sun; the technique against the "
-               "single-scattering reference at pixel centres, the light pass at its default (depth slices). *eye inside*: the spheres that hold the eye; *mean / "
-               "reference*: the image's mean over the reference's. A sphere that holds the eye is seen from inside: "
+               "2.4-unit cube around the eye, three of them placed to hold the eye (with the random ones, four do), "
+               "under a sun; the technique against the single-scattering reference at pixel centres, the light pass "
+               "at its default (depth slices). *eye inside*: the spheres that hold the eye; *mean / reference*: the "
+               "image's mean over the reference's. A sphere that holds the eye is seen from inside: "
                "*sphere* shading gives it the one radiance of the whole sphere, lit side included, over the chord "
                "from the eye to its far side; *chord* shades that chord at the depth its light comes from.")
 
 
 def inside_table(quick: bool) -> dict:
-    """300 particles around the eye, three of them holding it (a table: the positions listed)."""
+    """300 particles around the eye, three of them placed to hold it (a table: the positions listed)."""
     rng = np.random.default_rng(3)
     pos = rng.uniform(-1.2, 1.2, (300, 3))
     pos[:3] = [[0.05, 0.0, -0.05], [-0.1, 0.05, 0.1], [0.1, -0.12, 0.0]]  # spheres that hold the eye
