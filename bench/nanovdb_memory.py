@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 import warpvol as wv
+from bench.fingerprint import probe
 from bench.harness import REPO, PeakMemory, cpu_name, git_commit
 from warpvol.scene.procedural import NANOVDB_CLOUD, sparse_cloud_density
 
@@ -184,6 +185,9 @@ def main(argv=None) -> None:
                 print(f"{n}^3 {kind:<8} {row[kind]}", flush=True)
             a, b = np.load(scratch / f"dense-{n}.npz"), np.load(scratch / f"nanovdb-{n}.npz")
             row["same_images"] = all(np.array_equal(a[k], b[k]) for k in ("raymarch", "reference"))
+            # what bench report --stale renders again: the grids' NanoVDB path, on the built-in cloud (the
+            # scratch files are gone by then)
+            row["probe"] = probe({"scene": "nanovdb-cloud", "params": {"technique": "raymarch"}})
             rows.append(row)
             if not args.keep:
                 npy.unlink()
