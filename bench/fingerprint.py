@@ -113,8 +113,12 @@ def _scene_name(source) -> str:
 
 
 def page_status(path: Path) -> dict:
-    """``{"status": "current" | "changed" | "unprobed", "why": ...}`` for one page's JSON."""
+    """``{"status": "current" | "changed" | "unprobed" | "record", "why": ...}`` for one page's JSON.
+    A record (its ``record`` says of what) is a comparison of two commits measured back to back,
+    kept as measured: re-running one side alone would break it, so it is not probed."""
     doc = json.loads(Path(path).read_text())
+    if isinstance(doc, dict) and doc.get("record"):
+        return {"status": "record", "why": str(doc["record"])}
     rows = doc.get("rows") if isinstance(doc, dict) else None
     if not rows:
         return {"status": "unprobed", "why": "no rows"}

@@ -180,8 +180,8 @@ def _day(measured) -> str:
 def _still_true(status: dict | None) -> str:
     if status is None:
         return "not checked"
-    return {"current": "yes", "changed": "**no**: the images have changed since",
-            "unprobed": "unknown"}[status["status"]] + (f" ({status['why']})" if status["status"] != "current" else "")
+    return {"current": "yes", "changed": "**no**: the images have changed since", "unprobed": "unknown",
+            "record": "a record"}[status["status"]] + (f" ({status['why']})" if status["status"] != "current" else "")
 
 
 def page_files(results: Path) -> list[tuple[str, Path]]:

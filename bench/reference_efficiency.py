@@ -91,6 +91,8 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out")
     ap.add_argument("--table", nargs=2, metavar=("OLD", "NEW"))
+    ap.add_argument("--record", help="what the file is a record of (a side of a comparison measured back to back): "
+                                     "bench report --stale then leaves it unprobed by design")
     args = ap.parse_args(argv)
     if args.table:
         print(table(*args.table), end="")
@@ -101,7 +103,10 @@ def main(argv=None) -> None:
         rows.append(measure(*case))
         print(f"{rows[-1]['case']}: {rows[-1]['seconds']:.2f} s, relative variance {rows[-1]['relative_variance']:.3g}",
               flush=True)
-    doc = {"command": "bench/reference_efficiency.py", "commit": commit, "machine": cpu_model(), "measured": time.strftime("%Y-%m-%d %H:%M:%S"), "rows": rows}
+    doc = {"command": "bench/reference_efficiency.py", "commit": commit, "machine": cpu_model(),
+           "measured": time.strftime("%Y-%m-%d %H:%M:%S"), "rows": rows}
+    if args.record:
+        doc["record"] = args.record
     with open(args.out, "w") as fh:
         json.dump(doc, fh, indent=1)
         fh.write("\n")

@@ -32,3 +32,5 @@ def test_page_status(tmp_path):
     page.write_text(json.dumps({"rows": [ROW, {**ROW, "probe": p}]}))  # one row measured before probes
     assert page_status(page)["status"] == "unprobed"
     assert probe({**ROW, "scene": "no-such-scene 4x4"}) is None
+    page.write_text(json.dumps({"rows": [ROW], "record": "two commits measured back to back"}))  # kept as measured
+    assert page_status(page) == {"status": "record", "why": "two commits measured back to back"}
