@@ -114,8 +114,9 @@ def _scene_name(source) -> str:
 
 def page_status(path: Path) -> dict:
     """``{"status": "current" | "changed" | "unprobed" | "record", "why": ...}`` for one page's JSON.
-    A record (its ``record`` says of what) is a comparison of two commits measured back to back,
-    kept as measured: re-running one side alone would break it, so it is not probed."""
+    A record (its ``record`` says of what) is kept as of its commit on purpose: one side of a
+    comparison of two commits measured back to back (re-running it alone would break the
+    comparison), or a baseline that later pages are read against; it is not probed."""
     doc = json.loads(Path(path).read_text())
     if isinstance(doc, dict) and doc.get("record"):
         return {"status": "record", "why": str(doc["record"])}
