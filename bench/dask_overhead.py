@@ -32,6 +32,7 @@ import warp as wp
 import warpvol as wv
 from warpvol import cluster
 
+from .fingerprint import probe
 from .harness import cpu_name, git_commit, run_sweep
 from .sweeps import Sweep
 
@@ -121,6 +122,9 @@ def main(argv: list[str] | None = None) -> int:
            "measured": time.strftime("%Y-%m-%d %H:%M:%S"),
            **measure(args.points, args.seconds, args.repeats)}
     doc["machine"]["load_average_after"] = [round(x, 2) for x in os.getloadavg()]
+    # what each point rendered, for bench report --stale: the scene and settings, with its probe
+    point = {"scene": SCENE[0], "technique": "reference", "params": {"technique": "reference", "spp": doc["spp"]}}
+    doc["rows"] = [{**point, "probe": probe(point)}]
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "cpu.json").write_text(json.dumps(doc, indent=1) + "\n")

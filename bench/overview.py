@@ -10,7 +10,7 @@ The template (``bench/overview.md``) is prose with placeholders::
 that is: the page (a folder of ``results/``, optionally ``/file.json``; default its one JSON file
 other than ``*-quick.json``), the row (``key=value`` pairs matched against the row's fields and
 its ``params``, quoted where a value has spaces, ``key=null`` for a field the row lacks; empty
-for a file that has no rows), the field
+for a file that has no rows; ``.`` for the file's own fields beside its rows), the field
 (dotted: ``stages.multiple.median_ms``, ``spread_ms.0``; a number, or a figure the page holds as
 text such as ``+21.8%``, format ``s``) and a Python format spec. A placeholder
 may divide two figures of the same page: ``{{page; row; field; .2f; / row; field}}``.
@@ -86,6 +86,8 @@ _MISSING = object()
 
 
 def _select(doc, page: str, selector: str):
+    if selector.strip() == ".":  # the file's own fields, beside its rows
+        return doc
     want = {}
     for token in shlex.split(selector):
         key, eq, value = token.partition("=")

@@ -39,9 +39,10 @@ def test_placeholders_read_rows_fields_and_ratios(pages):
                          "{{ladder; steps=32 window=70; median_ms; .0f}} ms, "
                          "{{ladder; steps=32 window=16; median_ms; .2f; / steps=8; median_ms}}x, "
                          "{{ladder; window=16; table.gain; s}}; "
-                         "[`single/`](single/README.md) {{single; ; overhead_ms; .1f}} ms\n")
+                         "[`single/`](single/README.md) {{single; ; overhead_ms; .1f}} ms, "
+                         "{{ladder; .; sweep; s}}\n")
     assert "0.250 in 50 ms, 4.80x, +21.8%" in text
-    assert "3.5 ms" in text
+    assert "3.5 ms, ladder" in text  # "." selects the file's own fields beside its rows
     assert "| [ladder](ladder/README.md) | test machine | abc1234 | 2026-12-05 |" in text
 
 
