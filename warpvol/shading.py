@@ -21,7 +21,7 @@ from . import device as dev
 from .geometry.intersect import inside_box, ray_box
 from .geometry.mesh import Surfaces, occluded, surface_hit
 from .geometry.shadowmap import ShadowedLights, shadow_visibility, texel_world_size
-from .media.volume import (Media, exact_media, exact_optical_depth, grid_sigma_t_at, in_scatter_at, in_scatter_from,
+from .media.volume import (Media, exact_media, exact_optical_depth, grid_sigma_t_at, in_scatter_sample,
                            transmittance_estimate)
 from .physics.brdf import Material, brdf_eval
 from .physics.constants import INF, PI, RAY_EPS, STREAM
@@ -219,11 +219,7 @@ def step_in_scatter_through_maps(m: Media, sl: ShadowedLights, l: int, o: wp.vec
                 e = angle_share(light, e, dist, h, phi, na, dt)
             else:
                 e = step_mean_irradiance(light, e, dist, o, d, t0, t0 + dt)
-            ph = wp.vec3(0.0)
-            if na > 1:  # an equiangular point: its own lookup
-                ph = in_scatter_at(m, x, wp.dot(d, wi))
-            else:  # the step's midpoint, looked up already
-                ph = in_scatter_from(m, x, sig_s, wp.dot(d, wi))
+            ph = in_scatter_sample(m, x, sig_s, na == 1, wp.dot(d, wi))
             acc += wp.cw_mul(wp.cw_mul(ph, e), transmittance_rgb(tau))
     return acc
 

@@ -80,8 +80,7 @@ def shape_extinction(S: Shape, sigma: wp.vec3, x: wp.vec3) -> wp.vec3:
 @wp.func
 def shape_tau(S: Shape, sigma: wp.vec3, o: wp.vec3, d: wp.vec3, t0: float, t1: float) -> wp.vec3:
     """The optical depth over [t0, t1] along o + t d (unit d): sigma times the chord's overlap."""
-    overlap = shape_length(S.box != 0, S.lo, S.hi, S.centre, S.radius, o, d, t0, t1)
-    return wp.where(overlap > 0.0, overlap, 0.0) * sigma
+    return shape_length(S.box != 0, S.lo, S.hi, S.centre, S.radius, o, d, t0, t1) * sigma
 
 
 @wp.func

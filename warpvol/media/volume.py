@@ -148,6 +148,16 @@ def in_scatter_from(m: Media, x: wp.vec3, sigma_s: wp.vec3, cos_theta: float) ->
 
 
 @wp.func
+def in_scatter_sample(m: Media, x: wp.vec3, sigma_s: wp.vec3, looked_up: bool, cos_theta: float) -> wp.vec3:
+    """The in-scattering at a march sample x: ``in_scatter_from`` where x is the point whose
+    sigma_s the caller looked up (``looked_up``: the step's midpoint), else ``in_scatter_at`` (a
+    point of its own, such as an equiangular point beside a light)."""
+    if looked_up:
+        return in_scatter_from(m, x, sigma_s, cos_theta)
+    return in_scatter_at(m, x, cos_theta)
+
+
+@wp.func
 def exact_media(m: Media) -> bool:
     """Whether every medium has a closed-form optical depth (no grid is tracked): then
     ``transmittance_estimate`` is exact and a free flight's pdf sigma_t T is known."""

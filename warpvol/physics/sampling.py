@@ -1,8 +1,10 @@
 """Sampling shared by every technique: exponential free flights, equiangular sampling toward a
-point (Kulla & Fajardo 2012), the power heuristic (Veach 1997) and an orthonormal frame
-(Duff et al. 2017)."""
+point (Kulla & Fajardo 2012), the power heuristic (Veach 1997), an orthonormal frame
+(Duff et al. 2017) and cosine-weighted directions about a normal."""
 
 import warp as wp
+
+from .constants import TWO_PI
 
 
 @wp.func
@@ -56,3 +58,12 @@ def orthonormal_basis(n: wp.vec3):
     t = wp.vec3(1.0 + sign * n[0] * n[0] * a, sign * b, -sign * n[0])
     s = wp.vec3(b, sign + n[1] * n[1] * a, -n[1])
     return t, s
+
+
+@wp.func
+def cosine_direction(n: wp.vec3, u1: float, u2: float) -> wp.vec3:
+    """A direction about the unit normal n with pdf cos / pi, from two uniform numbers."""
+    r = wp.sqrt(u1)
+    phi = TWO_PI * u2
+    tx, ty = orthonormal_basis(n)
+    return wp.normalize(r * wp.cos(phi) * tx + r * wp.sin(phi) * ty + wp.sqrt(wp.max(0.0, 1.0 - r * r)) * n)

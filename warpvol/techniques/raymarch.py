@@ -54,7 +54,7 @@ from .. import device as dev
 from ..geometry.camera import RasterView, camera_view, view_ray
 from ..geometry.intersect import inside_box
 from ..geometry.mesh import Surfaces, occluded
-from ..media.volume import Media, coefficients_at, in_scatter_at, in_scatter_from, scattering_at
+from ..media.volume import Media, coefficients_at, in_scatter_at, in_scatter_sample, scattering_at
 from ..physics.constants import INF, RAY_EPS
 from ..physics.lights import (Emitter, angle_point, angle_samples, angle_share, light_incident, step_angle,
                               step_mean_irradiance)
@@ -203,11 +203,7 @@ def march_single_scattering(offset: int, cam: RasterView, m: Media, s: Surfaces,
                             else:
                                 e = angle_share(lights[l], e, dist, h, phi, na, dt)
                             tl = light_at(m, s, l, xj, wi, dist, st, baked, st.shadow_steps)
-                            ph = wp.vec3(0.0)
-                            if na > 1:  # an equiangular point: its own lookup
-                                ph = in_scatter_at(m, xj, wp.dot(d, wi))
-                            else:  # the step's midpoint, looked up already
-                                ph = in_scatter_from(m, x, sig_s, wp.dot(d, wi))
+                            ph = in_scatter_sample(m, xj, sig_s, na == 1, wp.dot(d, wi))
                             inscatter += wp.cw_mul(wp.cw_mul(ph, e), tl)
                 if sky.directions.shape[0] > 0 and ms.lat.n == 0:  # else the lattice carries the sky
                     inscatter += sky_in_scatter(m, s, sky, x, d, st, baked)

@@ -48,10 +48,10 @@ from ..geometry.mesh import Surfaces, surface_hit
 from ..media.volume import (Media, depths_and_extinction, exact_media, free_flight, in_scatter_at, media_span,
                             transmittance_estimate)
 from ..physics.brdf import brdf_eval
-from ..physics.constants import INF, PI, RAY_EPS, STREAM, TWO_PI
+from ..physics.constants import INF, PI, RAY_EPS, STREAM
 from ..physics.lights import DIRECTIONAL, Emitter, light_incident
 from ..physics.phase import phase_eval, phase_sample
-from ..physics.sampling import (equiangular_pdf, equiangular_sample, exponential_pdf, orthonormal_basis,
+from ..physics.sampling import (cosine_direction, equiangular_pdf, equiangular_sample, exponential_pdf,
                                 power_heuristic, sample_exponential)
 from ..physics.transmittance import transmittance_rgb
 from ..pipeline import FLAG, Quality, Setting, Stage, Technique
@@ -269,15 +269,6 @@ def make_span(o: wp.vec3, d: wp.vec3, ta: float, tb: float) -> Span:
     span.ta = ta
     span.tb = tb
     return span
-
-
-@wp.func
-def cosine_direction(n: wp.vec3, u1: float, u2: float) -> wp.vec3:
-    """A direction about n with pdf cos / pi, from two uniform numbers."""
-    r = wp.sqrt(u1)
-    phi = TWO_PI * u2
-    tx, ty = orthonormal_basis(n)
-    return wp.normalize(r * wp.cos(phi) * tx + r * wp.sin(phi) * ty + wp.sqrt(wp.max(0.0, 1.0 - r * r)) * n)
 
 
 @wp.func
