@@ -92,7 +92,7 @@ def main(argv=None) -> None:
     ap.add_argument("--out")
     ap.add_argument("--table", nargs=2, metavar=("OLD", "NEW"))
     ap.add_argument("--record", help="what the file is a record of (a side of a comparison measured back to back): "
-                                     "bench report --stale then leaves it unprobed by design")
+                                     "bench report --stale then gives it the status record, not probed")
     args = ap.parse_args(argv)
     if args.table:
         print(table(*args.table), end="")

@@ -320,12 +320,11 @@ def _ladder(renders: _Renders, technique: str, progress: bool, target: float, se
                        + (f"estimate {estimate:.3g} (target {target:g})" if np.isfinite(estimate)
                           else f"{len(images)} of the 3 levels an estimate needs"))
         if 2 * level > q.top:  # no finer level to measure against: the extrapolation stands
-            frame = _with_image(frame, images[-1], frame.settings)
             if not np.isfinite(estimate) and len(images) >= 2:  # the coarser level's measured error, one doubling on
                 estimate = 0.5**q.order * measured_error(images[-2], images[-1], q.order, spreads[-2], spreads[-1])
             return frame, estimate, level
-        if estimate <= target:  # a copy: the next level may reuse the output buffer
-            candidate = _with_image(frame, images[-1], frame.settings)
+        if estimate <= target:  # a frame of _Renders owns its image: the next level leaves it
+            candidate = frame
         level *= 2
 
 

@@ -402,17 +402,17 @@ def impostor_inside(params: dict, device: str, quick: bool) -> dict:
     r = wv.Renderer(scene, technique="depth_impostors", multiple_scattering=0, device=device,
                     object_depth=params["object_depth"], particle_shading=params["particle_shading"])
     row = time_frames(r, repeats=2 if quick else 5, invalidate=("medium", "lights"))
-    ref = score(row, scene, device, 16 if quick else 256, error_map=params == {"object_depth": "impostors",
-                                                                               "particle_shading": "chord"})
+    impostors, chord = params["object_depth"] == "impostors", params["particle_shading"] == "chord"
+    ref = score(row, scene, device, 16 if quick else 256, error_map=impostors and chord)
     m = scene.media[0]
     eye = np.asarray(scene.camera.origin, float)
     row["table"] = {"error": row["rel_rmse_corrected"], "HDR-FLIP": row["hdr_flip"],
                     "mean / reference": float(row["frame"].image.mean() / ref.mean()),
                     "eye inside": int(np.sum(np.linalg.norm(np.asarray(m.positions, float) - eye, axis=1) < m.radius)),
                     "reference noise": row["reference"]["rel_rmse_floor"]}
-    if params["object_depth"] == "impostors":
+    if impostors:
         row.setdefault("images", {})["image"] = row["frame"].image
-        if params["particle_shading"] == "chord":
+        if chord:
             row["images"]["reference"] = ref
     row["scene"] = f"inside-cloud 300 particles around the eye, {scene.camera.width}x{scene.camera.height}"
     row["scene_table"] = table
