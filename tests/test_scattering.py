@@ -240,6 +240,10 @@ def test_diagnostics_say_how_the_orders_were_summed(device):
     d = r.diagnostics()
     assert 2 <= d["ms_orders"] <= 64
     assert all(0.0 < x < 1.0 for x in d["ms_tail_ratio"])
+    # the ratio of successive orders per order, so a reader sees the tail's assumption hold or fail:
+    # one fewer than the orders, and the last is the tail's (its channels' mean)
+    assert len(d["ms_order_ratios"]) == d["ms_orders"] - 1
+    assert d["ms_order_ratios"][-1] == pytest.approx(np.mean(d["ms_tail_ratio"]), abs=1e-4)
 
 
 @pytest.mark.parametrize("technique", MARCHERS + ("depth_impostors",))
@@ -291,8 +295,10 @@ def _first_source(scene, n: int, D: int, device: str):
     sigma_s = wp.empty(n3 * len(scene.media), dtype=wp.vec3, device=device)
     dev.launch(S.bake_scattering, n3, [ms._m, lat, sigma_t, sigma_s], device)
     source = wp.empty(n3 * D, dtype=wp.vec3, device=device)
-    dev.launch(S.light_source, n3, [ms._m, ms._surfaces(), ms._lights(), lat, sigma_t, sigma_s, len(scene.media),
-                                    32, source], device)
+    lights = ms._lights()
+    whole = wp.zeros(lights.shape[0], dtype=float, device=device)  # no window: the whole source on the lattice
+    dev.launch(S.light_source, n3, [ms._m, ms._surfaces(), lights, lat, sigma_t, sigma_s, len(scene.media),
+                                    32, whole, source], device)
     return lat, sigma_t.numpy(), source.numpy().reshape(D, n3, 3)
 
 
@@ -404,3 +410,49 @@ def test_a_floor_past_the_lattice_keeps_the_fogs_light(device):
     gain = {n: float((img[n] - img[0])[floor].mean()) for n in (20, 44)}
     assert gain[20] > 0.0
     assert gain[44] > 0.5 * gain[20], gain
+
+
+def test_the_near_field_tables_match_quadrature(device):
+    """The windowed light's once-scattered radiance L1(r, nu) (equiangular, 64 points) against a
+    brute-force midpoint sum along the ray (200k points, exact to 1e-4), and the light it sends
+    toward the eye, G(r, mu) = int p L1 dw (the azimuth kernel times L1), against L1 summed over
+    4000 Fibonacci directions (its own error a few tenths of a percent away from the light,
+    where L1's 1/(r theta) peak toward the light is resolved): within 0.5% and 3%."""
+    from warpvol.scattering import near as N
+    from warpvol.upload import MediaBuffers
+
+    sigma, albedo, g, rho = 2.2, 0.9, 0.6, 0.5
+    scene = wv.load_scene({"camera": {"origin": [0, 0, 3], "target": [0, 0, 0], "width": 4, "height": 3},
+                           "lights": [{"type": "point", "position": [0, 0, 0], "intensity": 1.0}],
+                           "media": [{"type": "homogeneous", "shape": "sphere", "radius": 5.0, "sigma_t": sigma,
+                                      "albedo": albedo, "phase": {"type": "hg", "g": g}}]})
+    near = N.NearLights(scene, MediaBuffers(scene, device).struct, 1, lambda p: rho / N.WINDOW_CELLS, device)
+    assert near.rho[0] == pytest.approx(rho)
+    r_max = near.at[0][4]
+    L1 = near.L1[0].numpy().reshape(N.NEAR_R, N.NEAR_NU, 3)[..., 0]
+    G = near.view.numpy().reshape(N.NEAR_R, N.NEAR_MU, 3)[..., 0]
+
+    def hg(c):
+        return (1 - g * g) / (4 * np.pi * (1 + g * g - 2 * g * c) ** 1.5)
+
+    def brute(r, om, n=200_000):
+        length = 2 * rho + r
+        s = (np.arange(n) + 0.5) * length / n
+        y = np.array([0, 0, r])[None, None] - s[None, :, None] * om[:, None, :]
+        d = np.linalg.norm(y, axis=-1)
+        w = np.where(d < rho, (1 - (d / rho) ** 2) ** 2, 0.0)
+        c = np.einsum("ij,isj->is", om, y) / d
+        return (np.exp(-sigma * (s + d)) * albedo * sigma * hg(c) * w / d**2).sum(axis=1) * length / n
+
+    radius = lambda i: N.R_MIN * rho * np.exp(i / (N.NEAR_R - 1) * np.log(r_max / (N.R_MIN * rho)))  # noqa: E731
+    for i in (10, 30, 45):
+        nu = np.cos((np.array([5, 20, 40, 60]) + 0.5) * np.pi / N.NEAR_NU)
+        om = np.stack([np.sqrt(1 - nu * nu), 0 * nu, nu], -1)
+        np.testing.assert_allclose(L1[i, [5, 20, 40, 60]], brute(radius(i), om), rtol=5e-3)
+    dirs = fibonacci_directions(4000).astype(np.float64)
+    for i in (30, 45):
+        L = np.concatenate([brute(radius(i), dirs[k:k + 500], n=4000) for k in range(0, 4000, 500)])
+        for k in (0, 16, 32):
+            mu = -1 + 2 * k / (N.NEAR_MU - 1)
+            wo = np.array([np.sqrt(1 - mu * mu), 0, mu])
+            assert G[i, k] == pytest.approx(4 * np.pi * np.mean(hg(dirs @ wo) * L), rel=0.03), (i, k)

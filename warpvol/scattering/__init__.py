@@ -71,13 +71,15 @@ import warp as wp
 
 from .. import device as dev
 from ..physics.sphere import fibonacci_directions
-from ..pipeline import Bias, Frame, Setting, SettingsError, Stage
+from ..pipeline import FLAG, Bias, Frame, Setting, SettingsError, Stage
 from ..scene.model import MediumKind
 from ..upload import MediaBuffers
 from .kernels import (Ends, ScatteredLight, add_order, bake_scattering, characteristics, light_source, phase_matrix,
                       reflect_at_ends, reflected_field, reflected_from_outside, scatter, scattered_light,
                       scattered_on_surface, surface_starts, toward_eye, transport)
 from .lattice import LATTICE_PAD, Lattice, Spacing, enclosed, focus, graded_spacing
+from .near import NearLights
+from .near import empty as near_empty
 
 __all__ = ["BIASES", "SETTINGS", "Lattice", "MultipleScattering", "ScatteredLight", "Spacing", "check_settings",
            "leaves_out", "reflected_field", "reflected_from_outside", "scattered_light", "scattered_on_surface"]
@@ -88,6 +90,9 @@ SETTINGS = {
                                                "paper's model"),
     "ms_directions": Setting(16, 6, 256, "directions of the multiple-scattering lattice's radiance (a Fibonacci "
                                           "set); error ~ 1/directions"),
+    "ms_near": Setting(1, 0, 1, "on: a point light inside homogeneous fog has the light it scatters first within a "
+                                "window around it carried in closed form, the rest on the lattice (a "
+                                "first-collision split); off: all of it on the lattice", names=FLAG),
 }
 
 #: The finest lattice ``target_error`` takes: 32^3 nodes solve in seconds on two CPU cores, 64^3
@@ -138,6 +143,7 @@ class MultipleScattering:
         self.view = None
         self.orders = 0  # orders iterated before the tail
         self.ratio = np.zeros(3)  # the last ratio of successive orders
+        self.ratios: list[float] = []  # each order's energy over the last's (channels' mean), as iterated
         self.sigma_s = None
 
     @classmethod
@@ -162,7 +168,7 @@ class MultipleScattering:
         sky = ("sky_samples",) if "sky_samples" in self.t.settings else ()
         return [
             Stage("multiple", self._solve, reads=("medium", "lights", "surfaces", "background"),
-                  settings=("multiple_scattering", "ms_directions", *sky), after=after, needed=needed),
+                  settings=("multiple_scattering", "ms_directions", "ms_near", *sky), after=after, needed=needed),
             Stage("multiple_view", self._view, reads=("camera",), settings=("multiple_scattering",),
                   after=("multiple",), needed=needed),
         ]
@@ -207,6 +213,9 @@ class MultipleScattering:
         dev.launch(phase_matrix, M * D, [m, lat.directions, P], device, work=2.0 * D)
         lights, surfaces = self._lights(), self._surfaces()
         shadow_steps = self.shadow_steps
+        self.near = NearLights(scene if self.t.settings["ms_near"] else None, m, lights.shape[0],
+                               lambda p: self._cell_at(lat, p), device)
+        window = wp.array(self.near.rho, dtype=float, device=device)
         ends = Ends()
         ends.length = wp.empty(size, dtype=float, device=device)
         ends.point = wp.zeros(size, dtype=wp.vec3, device=device)
@@ -217,7 +226,7 @@ class MultipleScattering:
                    device, work=4.0 + lights.shape[0])
         reflects = bool(scene.surfaces) and bool(np.any(ends.face.numpy() >= 0))
         source = wp.empty(size, dtype=wp.vec3, device=device)
-        dev.launch(light_source, n3, [m, surfaces, lights, lat, sigma_t, self.sigma_s, M, shadow_steps, source],
+        dev.launch(light_source, n3, [m, surfaces, lights, lat, sigma_t, self.sigma_s, M, shadow_steps, window, source],
                    device, work=max(1, lights.shape[0]) * (4.0 * lat.n + D))
         L = wp.empty(size, dtype=wp.vec3, device=device)
         starts = wp.zeros(size, dtype=wp.vec3, device=device)  # what each characteristic starts with, this order
@@ -241,14 +250,18 @@ class MultipleScattering:
             if scene.surfaces or not self.t.gathers_sky:
                 dev.launch(add_order, size, [L, one, total], device)
         previous, ratio, total_energy = None, np.zeros(3), np.zeros(3)
+        self.ratios = []
         for k in range(1, MAX_ORDERS + 1):
             dev.launch(transport, size, [m, lat, sigma_t, source, ends.length, starts, 1, L], device, work=march)
             dev.launch(add_order, size, [L, one, total], device)
+            if k == 1 and self.near.at:  # the windowed lights' first order: the march reads it, the next orders take it
+                self.near.add_at_nodes(lat, L)
             energy = L.numpy().reshape(-1, 3).sum(axis=0, dtype=np.float64)
             total_energy = total_energy + energy
             self.orders = k
             if previous is not None:
                 r = np.where(previous > 0.0, energy / np.maximum(previous, 1e-300), 0.0)
+                self.ratios.append(float(np.mean(r)))
                 # a ratio at the cap (light still spreading, order after order, as early in an
                 # albedo-1 medium) is no ratio to extrapolate from: iterate on
                 change = np.abs(r - ratio)
@@ -269,8 +282,24 @@ class MultipleScattering:
         if np.any(self.ratio > 0.0):  # the geometric tail of the orders not iterated
             tail = self.ratio / (1.0 - self.ratio)
             dev.launch(add_order, size, [L, wp.vec3(*tail), total], device)
-        self.L = total
+        self.L = total  # what the view reads: the windowed lights' first order is the march's own
+        if self.near.at:  # the surfaces read it on the lattice
+            self.field = wp.clone(total)
+            order_one = wp.zeros(size, dtype=wp.vec3, device=device)
+            self.near.add_at_nodes(lat, order_one)
+            dev.launch(add_order, size, [order_one, one, self.field], device)
+        else:
+            self.field = total
         self._m = m
+
+    def _cell_at(self, lat: Lattice, p: np.ndarray) -> float:
+        """The lattice's widest cell around p."""
+        sp = lat.spacing
+        lo, hi = np.array(lat.lo, np.float64), np.array(lat.hi, np.float64)
+        s, alpha, c = (np.array(v, np.float64) for v in (sp.s, sp.alpha, sp.c))
+        even = (hi - lo) / (lat.n - 1)
+        graded = s * alpha * np.sqrt(1.0 + ((p - c) / s) ** 2)
+        return float(np.max(np.where(alpha > 0.0, graded, even)))
 
     def _view(self):
         lat = self.lattice
@@ -283,14 +312,20 @@ class MultipleScattering:
     def struct(self) -> ScatteredLight:
         sl = ScatteredLight()
         if self.n > 0 and self.view is not None:
-            sl.lat, sl.values, sl.field = self.lattice, self.view, self.L
+            sl.lat, sl.values, sl.field = self.lattice, self.view, self.field
+            sl.near = self.near.struct(self.t.scene.camera.origin)
             # the sky on surfaces beyond the field, unless the technique gathers the sky itself
             sl.sky = wp.vec3(0.0) if self.t.gathers_sky else wp.vec3(*self.t.scene.background)
         else:
             sl.lat = Lattice()
             sl.lat.n, sl.lat.graded, sl.lat.exact, sl.lat.spacing = 0, 0, 0, Spacing()
             sl.values = sl.field = sl.lat.directions = wp.zeros(1, dtype=wp.vec3, device=self.t.device)
+            sl.near = near_empty(self.t.device)
         return sl
 
     def diagnostics(self) -> dict:
-        return {"ms_orders": self.orders, "ms_tail_ratio": [float(r) for r in self.ratio]} if self.n else {}
+        if not self.n:
+            return {}
+        return {"ms_orders": self.orders, "ms_tail_ratio": [float(r) for r in self.ratio],
+                "ms_order_ratios": [round(r, 4) for r in self.ratios],
+                "ms_near_lights": int(np.count_nonzero(self.near.rho)) if getattr(self, "near", None) else 0}

@@ -18,6 +18,7 @@ from ..physics.phase import phase_eval
 from ..physics.sampling import orthonormal_basis
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..shading import light_transmittance, reflected, sky_along_normal, surface_direct
+from .near import NearField, far_part, near_in_scatter
 from .lattice import (LATTICE_PAD, Lattice, cell_size, cell_step, corner_weight, hat_volume, hat_weight, inside_margin,
                       lattice_coords, lattice_sample, node_index, node_position, support_corner)
 
@@ -39,6 +40,7 @@ class ScatteredLight:
     values: wp.array(dtype=wp.vec3)
     field: wp.array(dtype=wp.vec3)  # L_{>=1}(x, w_d), n^3 x D, for surfaces
     sky: wp.vec3  # the sky's radiance where the technique does not light surfaces with it itself, else 0
+    near: NearField  # the windowed point lights' once-scattered light (``near.py``)
 
 
 @wp.func
@@ -47,7 +49,7 @@ def scattered_light(sl: ScatteredLight, sigma_s: wp.vec3, x: wp.vec3) -> wp.vec3
     the camera, per unit length (added to a march's in-scattering); zero without the term."""
     if sl.lat.n == 0:
         return wp.vec3(0.0)
-    return wp.cw_mul(sigma_s, lattice_sample(sl.values, 0, 1, sl.lat, x))
+    return wp.cw_mul(sigma_s, lattice_sample(sl.values, 0, 1, sl.lat, x)) + near_in_scatter(sl.near, sigma_s, x)
 
 
 @wp.func
@@ -265,12 +267,14 @@ def hat_cap(lat: Lattice, node: wp.vec3, light: Emitter, x: wp.vec3):
 
 @wp.func
 def hat_light_direction(lat: Lattice, node: wp.vec3, light: Emitter, lo: wp.vec3, hi: wp.vec3, cos_max: float,
-                        axis: wp.vec3, dist: float, volume: float, sig: wp.vec3, k: int):
+                        axis: wp.vec3, dist: float, volume: float, sig: wp.vec3, log_tr: wp.vec3, k: int):
     """Direction k of NEAR_DIRECTIONS from the light over the node's hat (a Fibonacci set on the cap
     of ``hat_cap``) and the light it carries into the hat, per unit solid angle and hat volume:
-    int hat(p + r w) I(w) e^(-sigma (r - d)) dr (omega / K) / int hat dV, sigma the extinction at
-    the node and d its distance to the light (the node's own shadow ray takes the rest),
-    midpoints along the chord."""
+    int hat(p + r w) I(w) T e^(-sigma (r - d)) dr (omega / K) / int hat dV, sigma the extinction at
+    the node, d its distance to the light and T = e^log_tr the node's own shadow ray's
+    transmittance, midpoints along the chord. The two factors are joined in the exponent: apart,
+    a point nearer the light than the node in dense fog (sigma a cell over 88) overflowed
+    e^(sigma (d - r)) to inf, and inf times the node's underflowed T made NaN."""
     z = 1.0 - (float(k) + 0.5) / float(NEAR_DIRECTIONS) * (1.0 - cos_max)
     r = wp.sqrt(wp.max(1.0 - z * z, 0.0))
     phi = GOLDEN_ANGLE * float(k)
@@ -288,11 +292,18 @@ def hat_light_direction(lat: Lattice, node: wp.vec3, light: Emitter, lo: wp.vec3
             hw = hat_weight(lat, node, y)
             if hw > 0.0:
                 wi, dd, e = light_incident(light, y)
-                fall = wp.vec3(wp.exp(-sig[0] * (rr - dist)), wp.exp(-sig[1] * (rr - dist)),
-                               wp.exp(-sig[2] * (rr - dist)))
+                fall = wp.vec3(wp.exp(wp.min(log_tr[0] - sig[0] * (rr - dist), 0.0)),
+                               wp.exp(wp.min(log_tr[1] - sig[1] * (rr - dist), 0.0)),
+                               wp.exp(wp.min(log_tr[2] - sig[2] * (rr - dist), 0.0)))
                 acc += (hw * dd * dd) * wp.cw_mul(e, fall)
         acc = acc * (dr * 2.0 * PI * (1.0 - cos_max) / (float(NEAR_DIRECTIONS) * volume))
     return w, acc
+
+
+@wp.func
+def log_or_floor(t: float) -> float:
+    """log t, or -1e30 (e^ of it: 0) where t is 0."""
+    return wp.where(t > 0.0, wp.log(wp.max(t, 1.0e-38)), -1.0e30)
 
 
 @wp.func
@@ -336,7 +347,7 @@ def add_scattered(m: Media, lat: Lattice, sigma_s: wp.array(dtype=wp.vec3), phas
 @wp.kernel
 def light_source(offset: int, m: Media, s: Surfaces, lights: wp.array(dtype=Emitter), lat: Lattice,
                  sigma_t: wp.array(dtype=wp.vec3), sigma_s: wp.array(dtype=wp.vec3), phase_count: int,
-                 shadow_steps: int, q_out: wp.array(dtype=wp.vec3)):
+                 shadow_steps: int, window: wp.array(dtype=float), q_out: wp.array(dtype=wp.vec3)):
     """Q_1 of the lights at node q for every direction (direction-major): sum_l sigma_s
     p(-w_l . w_d) E_l T_l. The trilinear interpolant's integral is the nodes' values times their
     hats' volumes, so a node near a point or spot light takes the source averaged over its hat
@@ -344,7 +355,9 @@ def light_source(offset: int, m: Media, s: Surfaces, lights: wp.array(dtype=Emit
     the light a thick fog scatters first lies within a cell of the light), each direction from
     the light scattered by its own angle; farther nodes, and every node of a graded lattice
     (whose hats are not those of even cells; measured, they dim the image), take 1/d^2 averaged
-    over a ball of half a cell."""
+    over a ball of half a cell. A light with a window (``window`` > 0, its radius; ``near.py``)
+    leaves the windowed part of its source to the near field: the remainder, smooth and bounded,
+    is taken at the node."""
     q = wp.tid() + offset
     D = lat.directions.shape[0]
     n3 = lat.n * lat.n * lat.n
@@ -355,18 +368,22 @@ def light_source(offset: int, m: Media, s: Surfaces, lights: wp.array(dtype=Emit
         q_out[d * n3 + q] = wp.vec3(0.0)
     for l in range(lights.shape[0]):
         wi, dist, e = light_incident(lights[l], x)
-        if lat.graded == 0 and near_light(lat, node, lights[l]):
+        rho = window[l]
+        if rho > 0.0:
+            e = e * (dist * dist) * far_part(dist, rho)
+        elif lat.graded == 0 and near_light(lat, node, lights[l]):
             tr = light_transmittance(m, s, x, wi, dist, 0, rng, shadow_steps)
             if wp.max(tr) > 0.0:
                 lo, hi, cos_max, axis, d_light = hat_cap(lat, node, lights[l], x)
                 volume = hat_volume(lat, node)
+                log_tr = wp.vec3(log_or_floor(tr[0]), log_or_floor(tr[1]), log_or_floor(tr[2]))
                 for k in range(NEAR_DIRECTIONS):
                     w, carried = hat_light_direction(lat, node, lights[l], lo, hi, cos_max, axis, d_light, volume,
-                                                     sigma_t[q], k)
+                                                     sigma_t[q], log_tr, k)
                     if wp.max(carried) > 0.0:
-                        add_scattered(m, lat, sigma_s, phase_count, n3, q, w, wp.cw_mul(carried, tr), q_out)
+                        add_scattered(m, lat, sigma_s, phase_count, n3, q, w, carried, q_out)
             continue
-        if lights[l].kind != DIRECTIONAL:
+        elif lights[l].kind != DIRECTIONAL:
             cell = 0.5 * wp.length(cell_size(lat, x))  # the half cell 1/d^2 is averaged over: finite at the light
             e = e * (dist * dist) * ball_mean_inverse_square(cell, dist)
         if wp.max(e) > 0.0:
