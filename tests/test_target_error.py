@@ -259,3 +259,25 @@ def test_a_search_moves_one_renderer_to_the_image_a_fresh_one_renders(technique)
         got = moved.render().image.copy()
         fresh = wv.Renderer(scene, technique, "cpu", one_shot=True, **full).render().image
         assert np.array_equal(got, fresh), f"{technique} after moving to {settings}"
+
+
+@pytest.mark.parametrize("technique, budget", [("reference", 1.5), ("raymarch", 2.0)])
+def test_a_budget_stops_the_search_within_it(device, technique, budget):
+    """A target no budget of seconds reaches: the search stops at max_seconds with its best image
+    and an honest estimate (above the target, said in a warning), no later than 10% past it. The
+    first render is warmed apart, so the kernels' compile is not in the budget's clock."""
+    import time
+
+    scene = {"camera": {"origin": [0, 0, 3], "target": [0, 0, 0], "width": 24, "height": 18},
+             "lights": [{"type": "point", "position": [0.1, 0.0, 0.0], "intensity": 3.0}],
+             "media": [{"type": "homogeneous", "shape": "sphere", "radius": 1.0, "sigma_t": 2.0, "albedo": 0.9}]}
+    wv.render(scene, technique=technique, device=device)
+    t = time.perf_counter()
+    with pytest.warns(RuntimeWarning, match="max_seconds"):
+        frame = wv.render(scene, technique=technique, device=device, target_error=1e-4, max_seconds=budget)
+    assert time.perf_counter() - t <= 1.1 * budget
+    assert np.isfinite(frame.error_estimate) and frame.error_estimate > 1e-4
+    with pytest.raises(SettingsError, match="max_seconds"):
+        wv.render(scene, technique=technique, device=device, max_seconds=budget)
+    with pytest.raises(SettingsError, match="max_seconds"):
+        wv.render(scene, technique=technique, device=device, target_error=0.1, max_seconds=-1)

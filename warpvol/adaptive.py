@@ -87,6 +87,44 @@ def bias_error(image, limit_image, bias) -> float:
     return float(d if bias.exact is not None else d / (1.0 - float(bias.factor) ** -bias.order))
 
 
+#: The share of a budget's time left that a predicted step may take (a step's time varies by a
+#: few percent from the last one's scaled; the budget may be overrun by at most 10%).
+BUDGET_SHARE = 0.85
+
+
+class Budget:
+    """A search's time limit (``max_seconds``; None: none): ``affords(seconds)`` says whether
+    work of that length still ends within it (each next level's time is predicted from the last
+    level's, its work scaling with the knob), so a search stops at the budget instead of past it."""
+
+    def __init__(self, max_seconds: float | None):
+        self.max_seconds = max_seconds
+        self.start = time.perf_counter()
+        self.stopped = False  # a step was refused: the search stopped at the budget
+
+    def left(self) -> float:
+        if self.max_seconds is None:
+            return float("inf")
+        return self.max_seconds - (time.perf_counter() - self.start)
+
+    def affords(self, seconds: float) -> bool:
+        ok = seconds <= BUDGET_SHARE * self.left()
+        self.stopped = self.stopped or not ok
+        return ok
+
+
+def check_budget(value) -> float:
+    """``max_seconds``, a number of seconds > 0 (the CLI's --set may give it as a string)."""
+    try:
+        seconds = float(value)
+    except (TypeError, ValueError):
+        seconds = float("nan")
+    if not (np.isfinite(seconds) and seconds > 0.0):
+        raise SettingsError(f"setting max_seconds={value!r} is out of range (allowed: a number of seconds > 0, "
+                            f"with target_error)")
+    return seconds
+
+
 def check_target(value) -> float:
     ok = isinstance(value, (int, float)) and not isinstance(value, bool) and 0.0 < float(value) < 1.0
     if not ok:
@@ -106,30 +144,42 @@ def _with_image(frame: Frame, image: np.ndarray, settings: dict) -> Frame:
 MAX_ROUNDS = 8
 
 
-def render_to_target(scene, technique: str, device, progress: bool, target: float, settings: dict) -> Frame:
+def render_to_target(scene, technique: str, device, progress: bool, target: float, settings: dict,
+                     max_seconds: float | None = None) -> Frame:
     """Render to ``target`` against the technique's converged answer: the ladder of its
     ``Quality`` knob, then each ``Bias`` setting's bias measured at the level found (see
-    ``render``)."""
+    ``render``); within ``max_seconds`` where given (the best image found by then, with its
+    estimate, and a warning)."""
     cls = technique_class(technique)
     q, seed = _check_target_settings(cls, technique, settings)
     scene = load_scene(scene)
     base = {**getattr(cls, "QUALITY_HOLD", {}), **settings}
     renders = _Renders(scene, technique, device, progress)
+    budget = Budget(max_seconds)
     if q.knob == "spp":  # unbiased Monte Carlo: its noise is the whole error
-        return _render_spp(renders, technique, progress, target, base, q, seed)
+        return _render_spp(renders, technique, progress, target, base, q, seed, budget)
 
     held: dict = {}  # bias settings moved to their limit
     aim = target  # the ladder's share of the target
     first = q.start
+    best = None  # (total, frame) of the rounds so far
     for _ in range(MAX_ROUNDS):
         current = {**base, **held}
-        frame, estimate, level = _ladder(renders, technique, progress, aim, current, q, seed, first)
-        biases, limits = _measure_biases(renders, cls, scene, frame, current, level)
+        frame, estimate, level, took = _ladder(renders, technique, progress, aim, current, q, seed, first, budget)
+        biases, limits = ({}, {}) if budget.stopped else _measure_biases(renders, cls, scene, frame, current, level)
         total = float(np.sqrt(estimate**2 + sum(e * e for e in biases.values())))
         frame.bias_estimates = dict(biases)
         frame.moved_to_limit = dict(held)
+        if best is None or total < best[0]:
+            best = (total, frame)
         if total <= target:
             frame.error_estimate = total
+            return frame
+        if budget.stopped or not budget.affords(took):  # another round would not end within the budget
+            total, frame = best
+            frame.error_estimate = total
+            warnings.warn(f"{technique}: stopped at max_seconds={budget.max_seconds:g} with error estimate "
+                          f"{total:.3g} (target_error {target:.3g}) at {frame.settings}", RuntimeWarning, stacklevel=3)
             return frame
         fixed = sum(e * e for k, e in biases.items() if k in settings or k not in limits)
         if fixed >= target**2:  # the biases nothing may move (given, or at their top) exceed it alone
@@ -263,9 +313,10 @@ def _level_image(renders: _Renders, settings: dict, q, seed, level: int) -> np.n
 
 
 def _render_spp(renders: _Renders, technique: str, progress: bool, target: float, settings: dict, q,
-                seed: str) -> Frame:
+                seed: str, budget: Budget) -> Frame:
     """The reference: two runs of independent samples, raised until the standard error of
-    their mean is under SPP_MARGIN of the target."""
+    their mean is under SPP_MARGIN of the target, or to the most samples the budget affords
+    (time taken in proportion to the samples)."""
     level, limit = max(1, q.start // 2), q.top // 2  # samples of each run
     # two runs give one difference a pixel, which runs low where a few paths carry much of
     # a pixel's variance (measured: the truth up to 1.16x the estimate on random scenes), so
@@ -279,27 +330,39 @@ def _render_spp(renders: _Renders, technique: str, progress: bool, target: float
             _say(progress, f"target_error: {technique} {q.knob} = {2 * level}: estimate {estimate:.3g} "
                            f"(target {target:g}), {took:.1f} s")
             break
-        # the error falls as spp^-1/2: jump to the count the target needs
+        # the error falls as spp^-1/2: jump to the count the target needs, or the budget allows
         level_was = level
         level = min(limit, int(level * max(2.0, (estimate / aim) ** (1.0 / q.order))))
+        if not budget.affords(took * level / level_was):
+            level = int(level_was * BUDGET_SHARE * budget.left() / max(took, 1e-9))
+            if level <= level_was:  # not even as many again: the budget is spent
+                _say(progress, f"target_error: {technique} {q.knob} = {2 * level_was}: estimate {estimate:.3g} "
+                               f"(target {target:g}), {took:.1f} s; stopped at max_seconds={budget.max_seconds:g}")
+                level = level_was
+                break
         _say(progress, f"target_error: {technique} {q.knob} = {2 * level_was}: estimate {estimate:.3g} "
                        f"(target {target:g}), {took:.1f} s; next {q.knob} = {2 * level}, about "
                        f"{took * level / level_was:.0f} s")
     frame.settings[q.knob] = 2 * level
     frame.error_estimate = estimate
     if estimate > target:
+        why = f"stopped at max_seconds={budget.max_seconds:g}" if budget.stopped else "the most it may use"
         warnings.warn(f"{technique}: error estimate {estimate:.3g} above target_error {target:.3g} at {q.knob} = "
-                      f"{2 * level} (the most it may use)", RuntimeWarning, stacklevel=4)
+                      f"{2 * level} ({why})", RuntimeWarning, stacklevel=4)
     return frame
 
 
-def _ladder(renders: _Renders, technique: str, progress: bool, target: float, settings: dict, q, seed, first: int):
+def _ladder(renders: _Renders, technique: str, progress: bool, target: float, settings: dict, q, seed, first: int,
+            budget: Budget):
     """Double the knob from ``first`` until the error is at most ``target``: at the first level
     whose three-level extrapolation (``remaining_error``) meets it, one more level is rendered
-    and the level's error measured against it (``measured_error``). Returns (frame, estimate,
-    level)."""
+    and the level's error measured against it (``measured_error``); or until the next level (twice
+    the last one's time) would not end within the budget. Returns (frame, estimate, level, the
+    whole ladder's seconds)."""
     level, images, spreads, candidate = first, [], [], None
+    start = time.perf_counter()
     while True:
+        t0 = time.perf_counter()
         if seed is None:
             frame = renders.frame({**settings, **q.level_settings(level)})
             images.append(frame.image.astype(np.float64))
@@ -311,7 +374,7 @@ def _ladder(renders: _Renders, technique: str, progress: bool, target: float, se
         if candidate is not None:  # the previous level met the target by extrapolation: measure it
             measured = measured_error(images[-2], images[-1], q.order, spreads[-2], spreads[-1])
             if measured <= target:
-                return candidate, measured, level // 2
+                return candidate, measured, level // 2, time.perf_counter() - start
             candidate = None
         estimate = float("inf")
         if len(images) >= 3:
@@ -319,10 +382,14 @@ def _ladder(renders: _Renders, technique: str, progress: bool, target: float, se
         _say(progress, f"target_error: {technique} {q.knob} = {level}: "
                        + (f"estimate {estimate:.3g} (target {target:g})" if np.isfinite(estimate)
                           else f"{len(images)} of the 3 levels an estimate needs"))
-        if 2 * level > q.top:  # no finer level to measure against: the extrapolation stands
+        took = time.perf_counter() - t0
+        if 2 * level > q.top or not budget.affords(2.0 * took):  # no finer level: the extrapolation stands
             if not np.isfinite(estimate) and len(images) >= 2:  # the coarser level's measured error, one doubling on
                 estimate = 0.5**q.order * measured_error(images[-2], images[-1], q.order, spreads[-2], spreads[-1])
-            return frame, estimate, level
+            if budget.stopped:
+                _say(progress, f"target_error: {technique} {q.knob} = {level}: stopped at "
+                               f"max_seconds={budget.max_seconds:g}")
+            return frame, estimate, level, time.perf_counter() - start
         if estimate <= target:  # a frame of _Renders owns its image: the next level leaves it
             candidate = frame
         level *= 2
@@ -339,6 +406,7 @@ def render_auto(scene, device, progress: bool, settings: dict) -> Frame:
     if "target_error" not in settings:
         raise SettingsError("auto: give target_error (allowed: 0 < target_error < 1): the technique is chosen to meet it")
     target = check_target(settings.pop("target_error"))
+    budget = check_budget(settings.pop("max_seconds")) if "max_seconds" in settings else None
     if settings:
         raise SettingsError(f"auto: unknown setting {sorted(settings)[0]!r} (allowed: target_error; the chosen "
                             "technique's settings come with it)")
@@ -374,6 +442,6 @@ def render_auto(scene, device, progress: bool, settings: dict) -> Frame:
             return frame
     _say(progress, f"auto: {why}; the reference, to {target:g} by its own noise (its samples rise until "
                    "then: the lines below say what each level cost and what the next will)")
-    frame = render_to_target(scene, "reference", device, progress, target, {})
+    frame = render_to_target(scene, "reference", device, progress, target, {}, budget)
     frame.choice = f"reference: {why}; to {target:g} by its own noise"
     return frame

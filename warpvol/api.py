@@ -3,7 +3,8 @@
 
 from __future__ import annotations
 
-from .adaptive import check_target, render_auto, render_to_target
+from .adaptive import check_budget, check_target, render_auto, render_to_target
+from .pipeline import SettingsError
 from .pipeline import Frame
 from .scene import load_scene
 from .renderer import Renderer, render_once, technique_class, technique_names  # noqa: F401  (the public API)
@@ -40,7 +41,10 @@ def render(scene, technique: str = "reference", device: str | None = None, progr
     part of the estimate; for the reference, unbiased, it is the whole estimate.
     ``frame.error_estimate`` holds the estimate, ``frame.bias_estimates`` each bias measured,
     ``frame.moved_to_limit`` the settings taken to their limit; above the target at the knob's
-    limit, a warning. How well it holds: results/target-error.
+    limit, a warning. How well it holds: results/target-error. ``max_seconds`` bounds the search:
+    a level (a round of biases, the reference's next sample count) that would not end within it,
+    predicted from the last level's time, is not started; the frame is the best found, with its
+    estimate, and a warning says it stopped at the budget.
 
     ``technique="auto"`` (with ``target_error``, against the physical answer, all orders of
     scattering): the fastest technique whose measured error on the scene's family meets it
@@ -50,7 +54,10 @@ def render(scene, technique: str = "reference", device: str | None = None, progr
         scene = load_scene(scene, overrides)
     if technique == "auto":
         return render_auto(scene, device, progress, settings)
+    if "max_seconds" in settings and "target_error" not in settings:
+        raise SettingsError("setting max_seconds bounds a target_error search (allowed: with target_error)")
     if "target_error" in settings:
         target = check_target(settings.pop("target_error"))
-        return render_to_target(scene, technique, device, progress, target, settings)
+        budget = check_budget(settings.pop("max_seconds")) if "max_seconds" in settings else None
+        return render_to_target(scene, technique, device, progress, target, settings, budget)
     return render_once(scene, technique, device, progress, **settings)
