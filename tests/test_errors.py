@@ -253,7 +253,7 @@ def test_setting_of_another_technique(tmp_path, capsys):
     rc = main(["render", "fog-box", "--technique", "raymarch", "--set", "spp=4", "--out", str(tmp_path / "x.png")])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and len(err.splitlines()) == 1, err
-    assert "spp is a setting of reference, not of raymarch (allowed for raymarch: extinction_grid, ms_directions, multiple_scattering, shadow_grid, shadow_steps" in err, err
+    assert "spp is a setting of reference, not of raymarch (allowed for raymarch: extinction_grid, ms_directions, ms_near, multiple_scattering, shadow_grid, shadow_steps" in err, err
 
 
 def test_technique_refusing_a_scene_names_media_not_counts(device):
