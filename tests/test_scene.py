@@ -122,7 +122,7 @@ def test_scenes_folder_files_load():
 
 
 def test_unknown_setting_and_technique():
-    with pytest.raises(wv.SettingsError, match=r"unknown setting 'stepz'; did you mean steps\? \(allowed: extinction_grid, ms_directions, multiple_scattering, shadow_grid, shadow_steps, sky_samples, step_length, steps\)"):
+    with pytest.raises(wv.SettingsError, match=r"unknown setting 'stepz'; did you mean steps\? \(allowed: extinction_grid, ms_directions, ms_near, multiple_scattering, shadow_grid, shadow_steps, sky_samples, step_length, steps\)"):
         wv.render(BASE, technique="raymarch", stepz=3)
     with pytest.raises(wv.SettingsError, match=r"spp=0 is out of range \(allowed: 1\.\."):
         wv.render(BASE, technique="reference", spp=0)

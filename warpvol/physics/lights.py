@@ -107,17 +107,25 @@ def particle_incident(light: Emitter, x: wp.vec3, r: float):
     return w, d, light.strength * (ball_mean_inverse_square(r, d) * falloff)
 
 
+#: float32's relative resolution (2^-23): a point light nearer a ray than this times its distance
+#: from the ray's origin lies on the ray as far as float32 positions can tell.
+POSITION_EPS = wp.constant(1.2e-7)
+
+
 @wp.func
 def segment_mean_inverse_square(o: wp.vec3, d: wp.vec3, t0: float, t1: float, p: wp.vec3) -> float:
     """Mean of 1 / |o + t d - p|^2 over t in [t0, t1] (d unit): (atan((t1 - tc) / h) -
     atan((t0 - tc) / h)) / (h (t1 - t0)), tc the closest approach to p and h its distance.
     A march step that takes it instead of 1/d^2 at its midpoint does not alias a point
-    light's peak; h is kept above 1e-6 (t1 - t0) (the ray through the light itself)."""
+    light's peak; h is kept above 1e-6 (t1 - t0) (the ray through the light itself) and above
+    float32's resolution of |p - o| (``POSITION_EPS``): a step shorter than the resolution of t
+    there (a medium 1e-6 thick seen from 3 away) has t1 - t0 = 0, and a ray through the light
+    then had h = 0 and tm = 0, 1 / 0 = inf (NaN times a light of intensity 0)."""
     rel = p - o
     tc = wp.dot(rel, d)
     h2 = wp.max(wp.dot(rel, rel) - tc * tc, 0.0)
     dt = t1 - t0
-    h = wp.max(wp.sqrt(h2), 1.0e-6 * dt)
+    h = wp.max(wp.sqrt(h2), wp.max(1.0e-6 * dt, POSITION_EPS * wp.length(rel)))
     if dt <= 1.0e-4 * h:  # a step short beside the distance: the midpoint value
         tm = 0.5 * (t0 + t1) - tc
         return 1.0 / (h * h + tm * tm)
@@ -134,14 +142,19 @@ MAX_ANGLE_SAMPLES = wp.constant(32)
 @wp.func
 def step_angle(light: Emitter, o: wp.vec3, d: wp.vec3, t0: float, t1: float):
     """Returns (tc, h, phi): the closest approach tc of the ray o + t d (d unit) to a point or
-    spot light, its distance h (kept above 1e-6 (t1 - t0)), and the angle phi that the step
+    spot light, its distance h (kept above 1e-6 (t1 - t0) and float32's resolution of the
+    distance to the light, as in ``segment_mean_inverse_square``), and the angle phi that the step
     [t0, t1] subtends at the light, atan2((t1 - t0) h, h^2 + (t0 - tc)(t1 - tc)) (the difference
     of the two atans without their cancellation). Directional lights: phi = 0."""
     if light.kind == DIRECTIONAL:
         return 0.0, 1.0, 0.0
     rel = light.position - o
     tc = wp.dot(rel, d)
-    h = wp.max(wp.sqrt(wp.max(wp.dot(rel, rel) - tc * tc, 0.0)), 1.0e-6 * (t1 - t0))
+    # h's floor as ``segment_mean_inverse_square``'s: the shares go as 1 / (h dt), and 1e-6 dt alone
+    # took a ray through a light in a tiny medium (dt 1e-8) to 1e22 a unit intensity (inf times
+    # sigma_s p for a dense, forward-scattering one)
+    h = wp.max(wp.sqrt(wp.max(wp.dot(rel, rel) - tc * tc, 0.0)),
+               wp.max(1.0e-6 * (t1 - t0), POSITION_EPS * wp.length(rel)))
     return tc, h, wp.atan2((t1 - t0) * h, h * h + (t0 - tc) * (t1 - tc))
 
 
