@@ -49,3 +49,24 @@ def test_the_window_runs_off_screen(tmp_path):
     assert r.returncode == 0, r.stderr
     assert r.stdout.startswith("fog-box: live light_shafts, 32x24, 4 of the last frames at ") and "FPS" in r.stdout
     assert shot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_no_display_or_no_pyvista_is_one_line(monkeypatch, capsys):
+    """A window asked for where there is none to open (Linux, no $DISPLAY): exit 2 and one line
+    that says how to render off screen; without pyvista, one line that says what to install."""
+    import importlib.util
+
+    from warpvol.cli import main
+
+    monkeypatch.setattr(sys, "platform", "linux")
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    for command in ("live", "view"):
+        assert main([command, "fog-box"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "no display" in err and "--screenshot" in err, err
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "pyvista" else real(name, *a))
+    assert main(["view", "fog-box", "--screenshot", "x.png"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "pip install 'warpvol[viz]'" in err, err

@@ -90,7 +90,7 @@ def check_output(out: str) -> str:
         try:
             __import__(module)
         except ImportError:
-            raise ValueError(f"{out}: writing {ext[1:].upper()} needs {what} (allowed: pip install 'warpvol[video]'; "
+            raise ValueError(f"{out}: writing {ext[1:].upper()} needs {what} (fix: pip install 'warpvol[video]'; "
                              "or a folder for PNG frames)") from None
         return ext[1:]
     if ext:

@@ -140,6 +140,8 @@ def cmd_render(args) -> int:
         knob = technique_class(frame.technique).QUALITY.knob
         chosen = ", ".join(f"{k} = {frame.settings[k]}" for k in [knob, *frame.moved_to_limit])
         chosen = f", {chosen}, estimated error {frame.error_estimate:.3g}"
+        if frame.bias_estimates:  # the ladder's lines gave the knob's part; the rest is the biases'
+            chosen += " (biases: " + ", ".join(f"{k} {e:.3g}" for k, e in frame.bias_estimates.items()) + ")"
     name = f"auto -> {frame.technique}" if args.technique == "auto" else frame.technique
     print(f"{scene.name}: {name} on {frame.device}, {scene.camera.width}x{scene.camera.height}{chosen}, "
           f"{wall:.2f} s -> {', '.join(args.out)}")
@@ -185,7 +187,7 @@ def _cluster():
         if exc.name != "distributed":
             raise
         raise ValueError("--workers and --scheduler run on Dask, which is not installed "
-                         "(allowed: pip install 'warpvol[dask]')") from None
+                         "(fix: pip install 'warpvol[dask]')") from None
     return cluster
 
 
@@ -252,7 +254,23 @@ def cmd_bench(args) -> int:
     return 0
 
 
+def _needs_viz(command: str, on_screen: bool) -> None:
+    """One line, exit 2, instead of a traceback or a silent exit: pyvista is not installed, or a
+    window is asked for where there is no display to open it on (Linux without $DISPLAY or
+    $WAYLAND_DISPLAY)."""
+    import importlib.util
+    import os
+
+    if importlib.util.find_spec("pyvista") is None:
+        raise ValueError(f"{command} needs pyvista, which is not installed (fix: pip install 'warpvol[viz]')")
+    if on_screen and sys.platform.startswith("linux") and not (os.environ.get("DISPLAY")
+                                                                or os.environ.get("WAYLAND_DISPLAY")):
+        raise ValueError(f"{command}: no display to open a window on ($DISPLAY is not set; fix: --screenshot FILE.png "
+                         "renders off screen)")
+
+
 def cmd_view(args) -> int:
+    _needs_viz("view", on_screen=args.screenshot is None)
     import warpvol as wv
     from warpvol.viz import scene_plotter, technique_actors
 
@@ -274,6 +292,7 @@ def cmd_view(args) -> int:
 
 
 def cmd_live(args) -> int:
+    _needs_viz("live", on_screen=args.screenshot is None)
     from warpvol.viz.live import LiveView
 
     _quiet_vtk(args)
@@ -301,6 +320,7 @@ def cmd_demo(args) -> int:
 
     check_output_path(args.out)
     scene = wv.load_scene(args.scene, args.set or [])
+    cached = _kernel_cache_entries()
     frames = []
     for technique, settings in ((args.technique, {}), ("reference", {"target_error": 0.05})):
         t0 = time.perf_counter()  # the real-time technique at its defaults; the reference to 5% noise
@@ -319,8 +339,9 @@ def cmd_demo(args) -> int:
                                  (ref.image, ["reference", f"{ref_s:.1f} s  noise {ref.error_estimate:.2f}"]))]
     gap = np.zeros((halves[0].shape[0], 4, 3), np.float32)
     wv.save_image(args.out, np.concatenate([halves[0], gap, halves[1]], axis=1), exposure=exposure)
-    print(f"{scene.name}: {scene.camera.width}x{scene.camera.height} on {fast.device} (the first run compiles each "
-          "technique's kernels)")
+    compiled = _kernel_cache_entries() - cached
+    print(f"{scene.name}: {scene.camera.width}x{scene.camera.height} on {fast.device}"
+          + (f" (this run compiled {len(compiled)} kernel modules; later runs reuse them)" if compiled else ""))
     print(f"  left:  {fast.technique:<10} {fast_s:6.2f} s  error {error:.3g} against the reference (its defaults"
           + "".join(f"; approximates {x}" for x in fast.approximates)
           + f"; leaves out: {', '.join(fast.omits) or 'nothing'})")
@@ -328,6 +349,19 @@ def cmd_demo(args) -> int:
           "all orders of scattering)")
     print(f"  -> {args.out} (exposure {exposure:+.2f} stops)")
     return 0
+
+
+def _kernel_cache_entries() -> set:
+    """The modules in Warp's kernel cache (what a run that compiles adds to)."""
+    import os
+
+    import warp as wp
+
+    from warpvol import device
+
+    device.init()  # Warp, quietly: sets the cache's folder
+    folder = wp.config.kernel_cache_dir
+    return set(os.listdir(folder)) if folder and os.path.isdir(folder) else set()
 
 
 def cmd_docs(args) -> int:

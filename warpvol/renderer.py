@@ -24,7 +24,7 @@ def technique_class(name: str):
 
     if name not in TECHNIQUES:
         raise SettingsError(f"unknown technique {name!r}{did_you_mean(name, TECHNIQUES)} "
-                            f"(allowed: {', '.join(sorted(TECHNIQUES))})")
+                            f"(allowed: {', '.join(sorted(TECHNIQUES))}, or auto with target_error)")
     return TECHNIQUES[name]
 
 
