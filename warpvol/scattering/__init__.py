@@ -255,7 +255,9 @@ class MultipleScattering:
             dev.launch(transport, size, [m, lat, sigma_t, source, ends.length, starts, 1, L], device, work=march)
             dev.launch(add_order, size, [L, one, total], device)
             if k == 1 and self.near.at:  # the windowed lights' first order: the march reads it, the next orders take it
-                self.near.add_at_nodes(lat, L)
+                near_first = wp.zeros(size, dtype=wp.vec3, device=device)
+                self.near.add_at_nodes(lat, near_first)
+                dev.launch(add_order, size, [near_first, one, L], device)
             energy = L.numpy().reshape(-1, 3).sum(axis=0, dtype=np.float64)
             total_energy = total_energy + energy
             self.orders = k
@@ -285,9 +287,7 @@ class MultipleScattering:
         self.L = total  # what the view reads: the windowed lights' first order is the march's own
         if self.near.at:  # the surfaces read it on the lattice
             self.field = wp.clone(total)
-            order_one = wp.zeros(size, dtype=wp.vec3, device=device)
-            self.near.add_at_nodes(lat, order_one)
-            dev.launch(add_order, size, [order_one, one, self.field], device)
+            dev.launch(add_order, size, [near_first, one, self.field], device)
         else:
             self.field = total
         self._m = m
