@@ -184,8 +184,9 @@ def light_positions(scene) -> list[np.ndarray]:
     return [np.asarray(li.position, np.float64) for li in scene.lights if li.type in (LightKind.POINT, LightKind.SPOT)]
 
 
-def _first_hit(vertices: np.ndarray, faces: np.ndarray, o: np.ndarray, d: np.ndarray) -> float:
-    """Distance along o + t d to the nearest triangle (Moller-Trumbore over all of them), or inf."""
+def _first_hit(vertices: np.ndarray, faces: np.ndarray, o: np.ndarray, d: np.ndarray) -> tuple[float, int]:
+    """Distance along o + t d to the nearest triangle (Moller-Trumbore over all of them) and its
+    index, or (inf, -1)."""
     a, b, c = vertices[faces[:, 0]], vertices[faces[:, 1]], vertices[faces[:, 2]]
     e1, e2 = b - a, c - a
     p = np.cross(d, e2)
@@ -198,11 +199,18 @@ def _first_hit(vertices: np.ndarray, faces: np.ndarray, o: np.ndarray, d: np.nda
     v = (q @ d) * inv
     t = np.einsum("ij,ij->i", e2, q) * inv
     hit = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 1e-9)
-    return float(t[hit].min()) if np.any(hit) else np.inf
+    if not np.any(hit):
+        return np.inf, -1
+    k = int(np.argmin(np.where(hit, t, np.inf)))
+    return float(t[k]), k
 
 
 #: How far inside an enclosing wall the lattice stops, as a fraction of the enclosure's size.
 WALL_INSET = 0.005
+#: A surface is an enclosing wall only where it spans this part of the surfaces' bounding box on
+#: both of the other axes: a lamp's arm just above it (a street lamp) is no wall, and cutting the
+#: lattice there left the fog above the lamp without nodes (a band twice the physical light).
+WALL_SPAN = 0.9
 
 
 def enclosed(scene, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -211,13 +219,16 @@ def enclosed(scene, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndar
     bounding box and the media reach past it (a Cornell box around Gaussians whose tails pass
     its walls), the bound stops just inside that wall. Nodes beyond a wall would hold the dark
     outside and, interpolated across the wall, darken the light inside (trilinear lookups do
-    not know about surfaces); an open side (the Cornell box's front) keeps the media's bound."""
+    not know about surfaces); an open side (the Cornell box's front) keeps the media's bound, and
+    so does a side whose first surface spans less than WALL_SPAN of the surfaces' box (no wall)."""
     lights = light_positions(scene)
     if not lights or not scene.surfaces:
         return lo, hi
     vertices = np.concatenate([np.asarray(sf.vertices, np.float64) for sf in scene.surfaces])
     offsets = np.cumsum([0] + [len(sf.vertices) for sf in scene.surfaces[:-1]])
     faces = np.concatenate([np.asarray(sf.faces, np.int64) + k for sf, k in zip(scene.surfaces, offsets)])
+    owner = np.concatenate([np.full(len(sf.faces), i) for i, sf in enumerate(scene.surfaces)])
+    spans = [np.ptp(np.asarray(sf.vertices, np.float64), axis=0) for sf in scene.surfaces]
     box_lo, box_hi = vertices.min(axis=0), vertices.max(axis=0)
     inset = WALL_INSET * float(np.max(box_hi - box_lo))
     o = np.mean(lights, axis=0)
@@ -226,9 +237,12 @@ def enclosed(scene, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndar
         for sign, face in ((-1.0, box_lo[a]), (1.0, box_hi[a])):
             d = np.zeros(3)
             d[a] = sign
-            t = _first_hit(vertices, faces, o, d)
+            t, k = _first_hit(vertices, faces, o, d)
             if not np.isfinite(t) or abs(o[a] + sign * t - face) > inset:
                 continue  # open, or the first surface that way is not the enclosure's wall
+            others = [b for b in range(3) if b != a]
+            if np.any(spans[owner[k]][others] < WALL_SPAN * (box_hi - box_lo)[others]):
+                continue  # a small surface near the bound (a lamp's arm), not a wall
             if sign < 0 and lo[a] < face - inset:  # the media pass the wall (not merely meet it)
                 lo[a] = face + inset
             elif sign > 0 and hi[a] > face + inset:
