@@ -47,6 +47,14 @@ NEAR_PHI = 64  # azimuths of the phase kernel K
 R_MIN = 1.0e-3  # the tables' first radius, in units of rho (closer: clamped)
 NEAR_REACH = 8.0  # the tables' reach past the window, mean free paths; beyond, 1/r^2 e^(-sigma_t r)
 WINDOW_CELLS = 2.0
+#: The window may shrink to this many cells (to stay inside its medium and off the surfaces);
+#: below it the light keeps its whole source on the lattice.
+MIN_WINDOW_CELLS = 0.5
+#: Surfaces smaller than this part of the window's full reach (their box's diagonal) do not limit
+#: it: the closed geometry then leaves out their shadow inside the window (a street lamp's arm
+#: 0.125 over the lamp shades a twelfth of its light), where without the window the lattice held
+#: half the light scattered twice around the lamp.
+SMALL_SURFACE = 1.0
 HAT_POINTS = 4  # midpoints a side of a node's hat where L1 is averaged over it  # the window's radius in the lattice's widest cell at the light
 
 
@@ -332,7 +340,8 @@ class NearLights:
 def _window_for(scene, light, cell: float):
     """(rho, medium index, sigma_t) of a point light's window, or None where its source stays
     whole on the lattice: not a point light, the media not all homogeneous, not exactly one
-    medium at the light, or less than a cell of room to the medium's boundary or a surface."""
+    medium at the light, or less than MIN_WINDOW_CELLS of room to the medium's boundary or a
+    surface (surfaces smaller than SMALL_SURFACE times the window's reach are not counted)."""
     from ..scene.model import LightKind, MediumKind
     if light.type != LightKind.POINT or not scene.media:
         return None
@@ -347,10 +356,14 @@ def _window_for(scene, light, cell: float):
     sigma_t = np.broadcast_to(np.asarray(scene.media[medium].sigma_t, np.float64), (3,))
     if np.min(sigma_t) <= 0.0:
         return None
+    reach = WINDOW_CELLS * cell
     for sf in scene.surfaces:
-        room = min(room, _distance_to_mesh(np.asarray(sf.vertices, np.float64), np.asarray(sf.faces), p))
-    rho = min(WINDOW_CELLS * cell, room)
-    if rho < cell:
+        v = np.asarray(sf.vertices, np.float64)
+        if np.linalg.norm(np.ptp(v, axis=0)) < SMALL_SURFACE * reach:
+            continue  # a lamp's arm or a post: its shadow within the window is left out
+        room = min(room, _distance_to_mesh(v, np.asarray(sf.faces), p))
+    rho = min(reach, room)
+    if rho < MIN_WINDOW_CELLS * cell:
         return None
     return float(rho), medium, sigma_t
 
