@@ -376,13 +376,17 @@ MODEL_ERROR = Path(__file__).resolve().parents[1] / "warpvol" / "model_error.jso
 
 def write_model_error(rows: list[dict]) -> None:
     """For ``technique="auto"``: per family and technique its lowest measured error against the
-    physical answer, the frame time and settings that reached it (from accuracy-vs-time)."""
+    physical answer, the frame time and settings that reached it, and every point measured
+    (``front``: error, ms, settings; for ``frame_ms``) (from accuracy-vs-time)."""
     families: dict = {}
     for r in rows:
         p = r["params"]
         if p["technique"] in ("reference", "mitsuba"):  # the fallback and a yardstick, not techniques
             continue
-        family = families.setdefault(p["family"], {"media": r.get("media", []), "techniques": {}})
+        family = families.setdefault(p["family"], {"media": r.get("media", []), "techniques": {}, "front": []})
+        family["front"].append({"technique": p["technique"], "error": round(r["rel_rmse_corrected"], 4),
+                                "ms": round(r["median_ms"], 1),
+                                "settings": {k: v for k, v in p.items() if k not in ("family", "technique")}})
         best = family["techniques"].get(p["technique"])
         if best is None or r["rel_rmse_corrected"] < best["error"]:
             family["techniques"][p["technique"]] = {

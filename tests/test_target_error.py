@@ -280,3 +280,35 @@ def test_a_budget_stops_the_search_within_it(device, technique, budget):
         wv.render(scene, technique=technique, device=device, max_seconds=budget)
     with pytest.raises(SettingsError, match="max_seconds"):
         wv.render(scene, technique=technique, device=device, target_error=0.1, max_seconds=-1)
+
+
+def test_auto_with_a_frame_budget_picks_the_most_accurate_that_fits(device):
+    """``frame_ms``: the chosen point's measured time (scaled to the image's pixels) fits the
+    budget and no other measured point that fits has a lower worst-family error; a larger budget
+    never picks a less accurate point; none fitting: the fastest, with a warning."""
+    from warpvol.adaptive import _model_error
+
+    table = _model_error()
+    scene = wv.load_scene("fog-box", ["camera.width=16", "camera.height=12"])
+    errors = []
+    for budget in (2.0, 20.0, 200.0):
+        frame = wv.render(scene, technique="auto", device=device, frame_ms=budget)
+        err = float(frame.choice.split(", ")[1].split(" ")[0])
+        errors.append(err)
+        points = {}
+        for f in (f for f in table["families"].values() if f["media"] == ["homogeneous"]):
+            for p in f["front"]:
+                key = (p["technique"], tuple(sorted(p["settings"].items())))
+                e, ms = points.get(key, (0.0, 0.0))
+                points[key] = (max(e, p["error"]), max(ms, p["ms"] * 16 * 12 / (64 * 48)))
+        fitting = [e for e, ms in points.values() if ms <= budget]
+        # the choice line gives the error to 3 significant digits
+        assert fitting and err == pytest.approx(min(fitting), abs=5e-3 * err), (budget, frame.choice)
+    assert errors == sorted(errors, reverse=True)
+    with pytest.warns(RuntimeWarning, match="frame_ms"):
+        frame = wv.render("fog-box", technique="auto", device=device, frame_ms=0.001)
+    assert "none fits" in frame.choice
+    with pytest.raises(SettingsError, match="not both"):
+        wv.render("fog-box", technique="auto", device=device, frame_ms=16, target_error=0.1)
+    with pytest.raises(SettingsError, match="frame_ms"):
+        wv.render("fog-box", technique="auto", device=device, frame_ms=-1)

@@ -400,11 +400,14 @@ def render_auto(scene, device, progress: bool, settings: dict) -> Frame:
     answer (all orders of scattering: ``model_error.json``, from results/accuracy-vs-time) on
     the families of the scene's kind of media (the worst of them) meets ``target_error``, at
     the settings that measured it; else the reference, to the target by its own noise."""
-    import json
-    from importlib import resources
-
+    if "frame_ms" in settings:
+        if "target_error" in settings:
+            raise SettingsError("auto: give target_error or frame_ms, not both (allowed: target_error, the fastest "
+                                "that meets it; frame_ms, the most accurate within it)")
+        return _auto_within(scene, device, progress, settings)
     if "target_error" not in settings:
-        raise SettingsError("auto: give target_error (allowed: 0 < target_error < 1): the technique is chosen to meet it")
+        raise SettingsError("auto: give target_error (allowed: 0 < target_error < 1): the technique is chosen to meet "
+                            "it; or frame_ms (> 0), the most accurate technique within that frame time")
     target = check_target(settings.pop("target_error"))
     budget = check_budget(settings.pop("max_seconds")) if "max_seconds" in settings else None
     if settings:
@@ -412,7 +415,7 @@ def render_auto(scene, device, progress: bool, settings: dict) -> Frame:
                             "technique's settings come with it)")
     scene = load_scene(scene)
     kinds = sorted({m.type for m in scene.media})
-    table = json.loads(resources.files("warpvol").joinpath("model_error.json").read_text())
+    table = _model_error()
     # every measured family of the scene's kind of media; per technique its worst error there
     families = [name for name, f in table["families"].items() if f["media"] == kinds]
     measured = {}
@@ -445,3 +448,68 @@ def render_auto(scene, device, progress: bool, settings: dict) -> Frame:
     frame = render_to_target(scene, "reference", device, progress, target, {}, budget)
     frame.choice = f"reference: {why}; to {target:g} by its own noise"
     return frame
+
+
+def _model_error() -> dict:
+    import json
+    from importlib import resources
+
+    return json.loads(resources.files("warpvol").joinpath("model_error.json").read_text())
+
+
+def _auto_within(scene, device, progress: bool, settings: dict) -> Frame:
+    """``technique="auto"`` with ``frame_ms``: among the points measured on every family of the
+    scene's kind of media (``model_error.json``'s fronts: a technique at one set of settings), the
+    one whose worst error there is lowest and whose frame time, the slowest family's scaled from
+    the measured image to this one by its pixels, fits ``frame_ms``; the fastest point where none
+    fits (with a warning). The times are the measuring machine's (``model_error.json``'s device)."""
+    frame_ms = settings.pop("frame_ms")
+    try:
+        frame_ms = float(frame_ms)
+    except (TypeError, ValueError):
+        frame_ms = float("nan")
+    if not (np.isfinite(frame_ms) and frame_ms > 0.0):
+        raise SettingsError(f"auto: setting frame_ms={settings.get('frame_ms', frame_ms)!r} is out of range "
+                            "(allowed: a number of milliseconds > 0)")
+    if settings:
+        raise SettingsError(f"auto: unknown setting {sorted(settings)[0]!r} (allowed: frame_ms; the chosen "
+                            "technique's settings come with it)")
+    scene = load_scene(scene)
+    table = _model_error()
+    kinds = sorted({m.type for m in scene.media})
+    families = [f for f in table["families"].values() if f["media"] == kinds]
+    if not families:
+        raise SettingsError(f"auto: no measured family of {' and '.join(kinds) or 'empty'} media to choose from "
+                            f"(allowed: frame_ms with homogeneous, grid, rbf or particle media; or a technique)")
+    w, h = (int(v) for v in table["image"].split("x"))
+    scale = scene.camera.width * scene.camera.height / (w * h)
+    points: dict = {}  # (technique, settings) -> (worst error, slowest ms) over the families
+    for f in families:
+        for p in f.get("front", []):
+            key = (p["technique"], json_key(p["settings"]))
+            err, ms, n = points.get(key, (0.0, 0.0, 0))
+            points[key] = (max(err, p["error"]), max(ms, p["ms"] * scale), n + 1)
+    whole = {k: v for k, v in points.items() if v[2] == len(families)}
+    if not whole:
+        raise SettingsError("auto: frame_ms needs model_error.json's fronts (python -m warpvol bench report "
+                            "accuracy-vs-time writes them)")
+    fits = {k: v for k, v in whole.items() if v[1] <= frame_ms}
+    if fits:
+        (name, key), (err, ms, _) = min(fits.items(), key=lambda kv: (kv[1][0], kv[1][1]))
+    else:
+        (name, key), (err, ms, _) = min(whole.items(), key=lambda kv: kv[1][1])
+        warnings.warn(f"auto: no measured point fits frame_ms={frame_ms:g} at {scene.camera.width}x"
+                      f"{scene.camera.height} (the fastest: {name}, about {ms:.0f} ms)", RuntimeWarning, stacklevel=3)
+    chosen = dict(key)
+    frame = Renderer(scene, name, device, progress, one_shot=True, **chosen).render()
+    how = f"the lowest measured error within {frame_ms:g} ms" if fits else f"none fits {frame_ms:g} ms, the fastest"
+    frame.choice = (f"{name}: {how}, {err:.3g} (the worst of "
+                    f"{len(families)} families of {' and '.join(kinds)} media), about {ms:.0f} ms at this size "
+                    f"({', '.join(f'{k}={v}' for k, v in chosen.items())}; measured on {table['device']} at "
+                    f"{table['image']}, scaled by pixels)")
+    return frame
+
+
+def json_key(settings: dict) -> tuple:
+    """A settings dict as a hashable key."""
+    return tuple(sorted(settings.items()))

@@ -83,7 +83,7 @@ def _parse_set(values: list[str], technique: str) -> tuple[dict, list[str]]:
     settings, overrides = {}, []
     for item in values:
         key, _, value = item.partition("=")
-        if key in spec or key in ("target_error", "max_seconds"):  # every technique (warpvol.render)
+        if key in spec or key in ("target_error", "max_seconds", "frame_ms"):  # warpvol.render's own
             try:
                 settings[key] = tomllib.loads(f"v = {value}")["v"]
             except tomllib.TOMLDecodeError:
