@@ -73,6 +73,7 @@ from .. import device as dev
 from ..physics.sphere import fibonacci_directions
 from ..pipeline import FLAG, Bias, Frame, Setting, SettingsError, Stage
 from ..scene.model import MediumKind
+from ..media.volume import Media
 from ..upload import MediaBuffers
 from .kernels import (Ends, ScatteredLight, add_order, bake_scattering, characteristics, light_source, phase_matrix,
                       reflect_at_ends, reflected_field, reflected_from_outside, scatter, scattered_light,
@@ -113,7 +114,8 @@ LEFT_OUT_WITHOUT = "multiple scattering"
 MAX_ORDERS = 64  # source iterations before the geometric tail, at most
 SETTLED = 0.01  # the ratio of successive orders counts as settled when it changes by less than this
 TAIL_SETTLED = 0.01  # ... or when the tail's uncertainty from that change is under this part of the energy
-MAX_RATIO = 0.995  # rho above this is taken as this in the tail (albedo 1 in an unbounded medium)
+MAX_RATIO = 0.995
+EYE_CELLS = 1.5  # within this many cells of the eye a march takes R with its own direction to the eye  # rho above this is taken as this in the tail (albedo 1 in an unbounded medium)
 
 
 def check_settings(technique: str, settings: dict) -> None:
@@ -313,7 +315,10 @@ class MultipleScattering:
         sl = ScatteredLight()
         if self.n > 0 and self.view is not None:
             sl.lat, sl.values, sl.field = self.lattice, self.view, self.field
-            sl.near = self.near.struct(self.t.scene.camera.origin)
+            eye = np.asarray(self.t.scene.camera.origin, np.float64)
+            sl.near = self.near.struct(eye)
+            sl.m, sl.view_field, sl.eye = self._m, self.L, wp.vec3(*eye)
+            sl.eye_reach = EYE_CELLS * self._cell_at(self.lattice, eye)
             # the sky on surfaces beyond the field, unless the technique gathers the sky itself
             sl.sky = wp.vec3(0.0) if self.t.gathers_sky else wp.vec3(*self.t.scene.background)
         else:
@@ -321,6 +326,7 @@ class MultipleScattering:
             sl.lat.n, sl.lat.graded, sl.lat.exact, sl.lat.spacing = 0, 0, 0, Spacing()
             sl.values = sl.field = sl.lat.directions = wp.zeros(1, dtype=wp.vec3, device=self.t.device)
             sl.near = near_empty(self.t.device)
+            sl.m, sl.view_field, sl.eye, sl.eye_reach = Media(), sl.values, wp.vec3(0.0), 0.0
         return sl
 
     def diagnostics(self) -> dict:

@@ -41,15 +41,58 @@ class ScatteredLight:
     field: wp.array(dtype=wp.vec3)  # L_{>=1}(x, w_d), n^3 x D, for surfaces
     sky: wp.vec3  # the sky's radiance where the technique does not light surfaces with it itself, else 0
     near: NearField  # the windowed point lights' once-scattered light (``near.py``)
+    m: Media  # the media (their phase functions, for R toward the eye near it)
+    view_field: wp.array(dtype=wp.vec3)  # what ``values`` is baked from: L_{>=1} less the near field
+    eye: wp.vec3
+    eye_reach: float  # within this of the eye R is taken at the point itself (0: nowhere)
+
+
+@wp.func
+def toward_eye_at(sl: ScatteredLight, x: wp.vec3, baked: wp.vec3) -> wp.vec3:
+    """R(x) with the direction to the eye from x itself: sum_d p(w_d . wo) L(x, w_d) / sum_d p,
+    L trilinear per direction, the media's phase functions mixed by their sigma_s at x (none
+    there: ``baked``)."""
+    wo = sl.eye - x
+    if wp.length(wo) <= 0.0:
+        return baked
+    wo = wp.normalize(wo)
+    D = sl.lat.directions.shape[0]
+    num = wp.vec3(0.0)
+    weight = wp.vec3(0.0)
+    for i in range(sl.m.count):
+        sig = wp.cw_mul(medium_sigma_t(sl.m, i, x), sl.m.albedo[i])
+        if wp.max(sig) > 0.0:
+            s = wp.vec3(0.0)
+            den = float(0.0)
+            for d in range(D):
+                ph = phase_eval(sl.m.phase[i], sl.m.phase_table, wp.dot(sl.lat.directions[d], wo))
+                s += ph * lattice_sample(sl.view_field, d, D, sl.lat, x)
+                den += ph
+            num += wp.cw_mul(sig, s / wp.max(den, 1.0e-30))
+            weight += sig
+    if wp.max(weight) <= 0.0:
+        return baked
+    return wp.cw_div(num, wp.max(weight, wp.vec3(1.0e-30)))
 
 
 @wp.func
 def scattered_light(sl: ScatteredLight, sigma_s: wp.vec3, x: wp.vec3) -> wp.vec3:
     """sigma_s(x) R(x): the in-scattered radiance of the light scattered once or more at x toward
-    the camera, per unit length (added to a march's in-scattering); zero without the term."""
+    the camera, per unit length (added to a march's in-scattering); zero without the term.
+    R is baked at the nodes with each node's own direction to the eye; within ``eye_reach`` of
+    the eye (a cell and a half), where that direction turns across a cell (the nodes either side
+    of a camera inside fog see it in opposite directions, and their blend darkened the fog in
+    front of it by a quarter), R is taken at x itself, blended into the baked value over the
+    reach's outer half."""
     if sl.lat.n == 0:
         return wp.vec3(0.0)
-    return wp.cw_mul(sigma_s, lattice_sample(sl.values, 0, 1, sl.lat, x)) + near_in_scatter(sl.near, sigma_s, x)
+    R = lattice_sample(sl.values, 0, 1, sl.lat, x)
+    if sl.eye_reach > 0.0:
+        dist = wp.length(x - sl.eye)
+        if dist < sl.eye_reach:
+            w = wp.clamp(2.0 - 2.0 * dist / sl.eye_reach, 0.0, 1.0)
+            R = (1.0 - w) * R + w * toward_eye_at(sl, x, R)
+    return wp.cw_mul(sigma_s, R) + near_in_scatter(sl.near, sigma_s, x)
 
 
 @wp.func
