@@ -26,7 +26,7 @@ import warp as wp
 
 import warpvol as wv
 
-from .harness import device_name, git_commit
+from .harness import device_name, git_commit, time_frames
 
 WIDTH, HEIGHT = 64, 48
 SPP = 4096
@@ -74,10 +74,9 @@ ROWS = [("the lattice alone (ms_near off)", {"ms_near": 0}), ("near field split 
 
 
 def _timed(scene, technique: str, **settings):
-    wv.render(scene, technique, device="cpu", **settings)  # compile and warm
-    t = time.perf_counter()
-    frame = wv.render(scene, technique, device="cpu", **settings)
-    return frame, time.perf_counter() - t
+    """A frame after a warm-up one (compile excluded), every stage re-run, and its seconds."""
+    timed = time_frames(wv.Renderer(scene, technique, "cpu", one_shot=True, **settings), repeats=1)
+    return timed["frame"], timed["median_ms"] / 1000.0
 
 
 def measure(label: str, table: dict) -> list[dict]:

@@ -25,7 +25,7 @@ import warp as wp
 
 import warpvol as wv
 
-from .harness import device_name, git_commit
+from .harness import device_name, git_commit, time_frames
 
 WIDTH, HEIGHT, BLOCK = 160, 120, 8
 SPP = 1024
@@ -70,10 +70,8 @@ def main(argv=None) -> None:
     reference = blocks(truth)
     rows = []
     for label, technique, settings in ROWS:
-        wv.render(street_lamp(), technique, device="cpu", **settings)
-        t = time.perf_counter()
-        image = wv.render(street_lamp(), technique, device="cpu", **settings).image
-        seconds = time.perf_counter() - t
+        timed = time_frames(wv.Renderer(street_lamp(), technique, "cpu", one_shot=True, **settings), repeats=1)
+        image, seconds = timed["frame"].image, timed["median_ms"] / 1000.0
         ratio = blocks(image) / reference
         rows.append({"row": label, "technique": technique, "params": {"technique": technique, **settings},
                      "seconds": seconds, "block_min": float(ratio.min()), "block_max": float(ratio.max()),

@@ -428,9 +428,9 @@ def test_the_near_field_tables_match_quadrature(device):
                                       "albedo": albedo, "phase": {"type": "hg", "g": g}}]})
     near = N.NearLights(scene, MediaBuffers(scene, device).struct, 1, lambda p: rho / N.WINDOW_CELLS, device)
     assert near.rho[0] == pytest.approx(rho)
-    r_max = near.at[0][4]
+    r_max = near.at[0][3]
     L1 = near.L1[0].numpy().reshape(N.NEAR_R, N.NEAR_NU, 3)[..., 0]
-    G = near.view.numpy().reshape(N.NEAR_R, N.NEAR_MU, 3)[..., 0]
+    G = near.field.view.numpy().reshape(N.NEAR_R, N.NEAR_MU, 3)[..., 0]
 
     def hg(c):
         return (1 - g * g) / (4 * np.pi * (1 + g * g - 2 * g * c) ** 1.5)

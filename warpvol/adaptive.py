@@ -113,16 +113,22 @@ class Budget:
         return ok
 
 
-def check_budget(value) -> float:
-    """``max_seconds``, a number of seconds > 0 (the CLI's --set may give it as a string)."""
+def positive_number(value, message: str) -> float:
+    """``value`` as a finite number > 0 (the CLI's --set may give it as a string), else
+    SettingsError(``message``)."""
     try:
-        seconds = float(value)
+        number = float(value)
     except (TypeError, ValueError):
-        seconds = float("nan")
-    if not (np.isfinite(seconds) and seconds > 0.0):
-        raise SettingsError(f"setting max_seconds={value!r} is out of range (allowed: a number of seconds > 0, "
-                            f"with target_error)")
-    return seconds
+        number = float("nan")
+    if not (np.isfinite(number) and number > 0.0):
+        raise SettingsError(message)
+    return number
+
+
+def check_budget(value) -> float:
+    """``max_seconds``, a number of seconds > 0."""
+    return positive_number(value, f"setting max_seconds={value!r} is out of range (allowed: a number of seconds > 0, "
+                                  "with target_error)")
 
 
 def check_target(value) -> float:
@@ -463,14 +469,9 @@ def _auto_within(scene, device, progress: bool, settings: dict) -> Frame:
     one whose worst error there is lowest and whose frame time, the slowest family's scaled from
     the measured image to this one by its pixels, fits ``frame_ms``; the fastest point where none
     fits (with a warning). The times are the measuring machine's (``model_error.json``'s device)."""
-    frame_ms = settings.pop("frame_ms")
-    try:
-        frame_ms = float(frame_ms)
-    except (TypeError, ValueError):
-        frame_ms = float("nan")
-    if not (np.isfinite(frame_ms) and frame_ms > 0.0):
-        raise SettingsError(f"auto: setting frame_ms={settings.get('frame_ms', frame_ms)!r} is out of range "
-                            "(allowed: a number of milliseconds > 0)")
+    given = settings.pop("frame_ms")
+    frame_ms = positive_number(given, f"auto: setting frame_ms={given!r} is out of range (allowed: a number of "
+                                      "milliseconds > 0)")
     if settings:
         raise SettingsError(f"auto: unknown setting {sorted(settings)[0]!r} (allowed: frame_ms; the chosen "
                             "technique's settings come with it)")
@@ -486,7 +487,7 @@ def _auto_within(scene, device, progress: bool, settings: dict) -> Frame:
     points: dict = {}  # (technique, settings) -> (worst error, slowest ms) over the families
     for f in families:
         for p in f.get("front", []):
-            key = (p["technique"], json_key(p["settings"]))
+            key = (p["technique"], tuple(sorted(p["settings"].items())))
             err, ms, n = points.get(key, (0.0, 0.0, 0))
             points[key] = (max(err, p["error"]), max(ms, p["ms"] * scale), n + 1)
     whole = {k: v for k, v in points.items() if v[2] == len(families)}
@@ -509,7 +510,3 @@ def _auto_within(scene, device, progress: bool, settings: dict) -> Frame:
                     f"{table['image']}, scaled by pixels)")
     return frame
 
-
-def json_key(settings: dict) -> tuple:
-    """A settings dict as a hashable key."""
-    return tuple(sorted(settings.items()))

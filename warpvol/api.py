@@ -4,8 +4,7 @@
 from __future__ import annotations
 
 from .adaptive import check_budget, check_target, render_auto, render_to_target
-from .pipeline import SettingsError
-from .pipeline import Frame
+from .pipeline import Frame, SettingsError
 from .scene import load_scene
 from .renderer import Renderer, render_once, technique_class, technique_names  # noqa: F401  (the public API)
 

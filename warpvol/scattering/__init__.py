@@ -114,8 +114,8 @@ LEFT_OUT_WITHOUT = "multiple scattering"
 MAX_ORDERS = 64  # source iterations before the geometric tail, at most
 SETTLED = 0.01  # the ratio of successive orders counts as settled when it changes by less than this
 TAIL_SETTLED = 0.01  # ... or when the tail's uncertainty from that change is under this part of the energy
-MAX_RATIO = 0.995
-EYE_CELLS = 1.5  # within this many cells of the eye a march takes R with its own direction to the eye  # rho above this is taken as this in the tail (albedo 1 in an unbounded medium)
+MAX_RATIO = 0.995  # rho above this is taken as this in the tail (albedo 1 in an unbounded medium)
+EYE_CELLS = 1.5  # within this many cells of the eye a march takes R with its own direction to the eye
 
 
 def check_settings(technique: str, settings: dict) -> None:
@@ -253,12 +253,12 @@ class MultipleScattering:
                 dev.launch(add_order, size, [L, one, total], device)
         previous, ratio, total_energy = None, np.zeros(3), np.zeros(3)
         self.ratios = []
+        # the windowed lights' first order: the march reads it itself, the next orders and the surfaces take it
+        near_first = self.near.first_order(lat, size)
         for k in range(1, MAX_ORDERS + 1):
             dev.launch(transport, size, [m, lat, sigma_t, source, ends.length, starts, 1, L], device, work=march)
             dev.launch(add_order, size, [L, one, total], device)
-            if k == 1 and self.near.at:  # the windowed lights' first order: the march reads it, the next orders take it
-                near_first = wp.zeros(size, dtype=wp.vec3, device=device)
-                self.near.add_at_nodes(lat, near_first)
+            if k == 1 and near_first is not None:
                 dev.launch(add_order, size, [near_first, one, L], device)
             energy = L.numpy().reshape(-1, 3).sum(axis=0, dtype=np.float64)
             total_energy = total_energy + energy
@@ -287,7 +287,7 @@ class MultipleScattering:
             tail = self.ratio / (1.0 - self.ratio)
             dev.launch(add_order, size, [L, wp.vec3(*tail), total], device)
         self.L = total  # what the view reads: the windowed lights' first order is the march's own
-        if self.near.at:  # the surfaces read it on the lattice
+        if near_first is not None:  # the surfaces read it on the lattice
             self.field = wp.clone(total)
             dev.launch(add_order, size, [near_first, one, self.field], device)
         else:
@@ -316,7 +316,7 @@ class MultipleScattering:
         if self.n > 0 and self.view is not None:
             sl.lat, sl.values, sl.field = self.lattice, self.view, self.field
             eye = np.asarray(self.t.scene.camera.origin, np.float64)
-            sl.near = self.near.struct(eye)
+            sl.near = self.near.field
             sl.m, sl.view_field, sl.eye = self._m, self.L, wp.vec3(*eye)
             sl.eye_reach = EYE_CELLS * self._cell_at(self.lattice, eye)
             # the sky on surfaces beyond the field, unless the technique gathers the sky itself

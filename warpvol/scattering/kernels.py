@@ -92,7 +92,7 @@ def scattered_light(sl: ScatteredLight, sigma_s: wp.vec3, x: wp.vec3) -> wp.vec3
         if dist < sl.eye_reach:
             w = wp.clamp(2.0 - 2.0 * dist / sl.eye_reach, 0.0, 1.0)
             R = (1.0 - w) * R + w * toward_eye_at(sl, x, R)
-    return wp.cw_mul(sigma_s, R) + near_in_scatter(sl.near, sigma_s, x)
+    return wp.cw_mul(sigma_s, R) + near_in_scatter(sl.near, sl.eye, sigma_s, x)
 
 
 @wp.func

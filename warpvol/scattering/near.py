@@ -35,6 +35,7 @@ from .. import device as dev
 from ..media.volume import Media, coefficients_at
 from ..physics.constants import PI
 from ..physics.phase import phase_eval
+from ..scene.model import LightKind, MediumKind
 from .lattice import Lattice, hat_weight, node_index, node_position, support_corner
 
 dev.kernel_module(__name__)
@@ -46,7 +47,7 @@ NEAR_STEPS = 64  # equiangular midpoints along each ray
 NEAR_PHI = 64  # azimuths of the phase kernel K
 R_MIN = 1.0e-3  # the tables' first radius, in units of rho (closer: clamped)
 NEAR_REACH = 8.0  # the tables' reach past the window, mean free paths; beyond, 1/r^2 e^(-sigma_t r)
-WINDOW_CELLS = 2.0
+WINDOW_CELLS = 2.0  # the window's radius in the lattice's widest cell at the light
 #: The window may shrink to this many cells (to stay inside its medium and off the surfaces);
 #: below it the light keeps its whole source on the lattice.
 MIN_WINDOW_CELLS = 0.5
@@ -55,7 +56,7 @@ MIN_WINDOW_CELLS = 0.5
 #: 0.125 over the lamp shades a twelfth of its light), where without the window the lattice held
 #: half the light scattered twice around the lamp.
 SMALL_SURFACE = 1.0
-HAT_POINTS = 4  # midpoints a side of a node's hat where L1 is averaged over it  # the window's radius in the lattice's widest cell at the light
+HAT_POINTS = 4  # midpoints a side of a node's hat where L1 is averaged over it
 
 
 @wp.struct
@@ -68,7 +69,6 @@ class NearField:
     r_max: wp.array(dtype=float)  # the tables' last radius
     sigma_t: wp.array(dtype=wp.vec3)  # the medium's at the light (the tables' fall-off beyond r_max)
     view: wp.array(dtype=wp.vec3)  # G, light-major, NEAR_R x NEAR_MU
-    eye: wp.vec3
 
 
 @wp.func
@@ -204,14 +204,14 @@ def beyond(r: float, r_max: float, sigma_t: wp.vec3) -> wp.vec3:
 
 
 @wp.func
-def near_in_scatter(nf: NearField, sigma_s: wp.vec3, x: wp.vec3) -> wp.vec3:
+def near_in_scatter(nf: NearField, eye: wp.vec3, sigma_s: wp.vec3, x: wp.vec3) -> wp.vec3:
     """sigma_s(x) sum_l G_l(r, mu): the windowed lights' once-scattered light scattered toward
     the eye at x, per unit length."""
     out = wp.vec3(0.0)
     for l in range(nf.count):
         to = x - nf.position[l]
         r = wp.length(to)
-        wo = nf.eye - x
+        wo = eye - x
         mu = float(0.0)
         if r > 0.0 and wp.length(wo) > 0.0:
             mu = wp.dot(to / r, wp.normalize(wo))
@@ -275,20 +275,20 @@ def empty(device) -> NearField:
     nf.count = 0
     nf.position = nf.sigma_t = nf.view = wp.zeros(1, dtype=wp.vec3, device=device)
     nf.rho = nf.r_max = wp.zeros(1, dtype=float, device=device)
-    nf.eye = wp.vec3(0.0)
     return nf
 
 
 class NearLights:
     """The windowed lights of one solve: their windows (``rho``: one per uploaded light, 0 where
-    the light keeps its whole source on the lattice), their L1 tables and the march's G tables.
-    ``scene`` None: no windows (the setting ``ms_near`` off)."""
+    the light keeps its whole source on the lattice), their L1 tables and what a march reads
+    (``field``: the lights' positions, windows and G tables). ``scene`` None: no windows (the
+    setting ``ms_near`` off)."""
 
     def __init__(self, scene, media: Media, count: int, cell_at, device):
         self.device = device
         self.rho = np.zeros(max(count, 1), np.float32)
         self.L1: list = []
-        self.at: list = []  # (light index, position, rho, r_max, sigma_t)
+        self.at: list = []  # (medium index, position, rho, r_max, sigma_t) of each windowed light
         for li, light in enumerate(scene.lights if scene is not None else []):
             found = _window_for(scene, light, cell_at(np.asarray(light.position, np.float64)))
             if found is None:
@@ -301,40 +301,37 @@ class NearLights:
                        work=float(NEAR_STEPS))
             self.rho[li] = rho
             self.L1.append(L1)
-            self.at.append((li, medium, np.asarray(light.position, np.float32), rho, r_max,
-                            np.asarray(sigma_t, np.float32)))
-        self.view = None
-        if self.at:
-            self._view(media)
+            self.at.append((medium, np.asarray(light.position, np.float32), rho, r_max, np.asarray(sigma_t, np.float32)))
+        self.field = self._field(media) if self.at else empty(device)
 
-    def _view(self, media: Media):
-        n = len(self.at)
-        self.view = wp.empty(n * NEAR_R * NEAR_MU, dtype=wp.vec3, device=self.device)
-        K = wp.empty(NEAR_NU * NEAR_MU, dtype=float, device=self.device)
-        for k, (li, medium, *_) in enumerate(self.at):
-            dev.launch(azimuth_phase, NEAR_NU * NEAR_MU, [media, medium, K], self.device, work=float(NEAR_PHI))
-            dev.launch(near_view, NEAR_R * NEAR_MU, [self.L1[k], K, k * NEAR_R * NEAR_MU, self.view], self.device,
-                       work=float(NEAR_NU))
-
-    def add_at_nodes(self, lat: Lattice, L: wp.array) -> None:
-        """Each windowed light's L1 onto the lattice's first order L (node-major)."""
-        for k, (li, medium, pos, rho, r_max, sig) in enumerate(self.at):
-            dev.launch(near_at_nodes, L.shape[0], [lat, wp.vec3(*pos), rho, r_max, wp.vec3(*sig), self.L1[k], L],
-                       self.device, work=8.0)
-
-    def struct(self, eye) -> NearField:
-        if not self.at:
-            return empty(self.device)
+    def _field(self, media: Media) -> NearField:
+        """What a march reads, uploaded once a solve: the G tables (the azimuth kernel of each
+        light's medium times its L1 table) and each light's position, window and reach."""
+        d = self.device
         nf = NearField()
         nf.count = len(self.at)
-        d = self.device
-        nf.position = wp.array([a[2] for a in self.at], dtype=wp.vec3, device=d)
-        nf.rho = wp.array([a[3] for a in self.at], dtype=float, device=d)
-        nf.r_max = wp.array([a[4] for a in self.at], dtype=float, device=d)
-        nf.sigma_t = wp.array([a[5] for a in self.at], dtype=wp.vec3, device=d)
-        nf.view = self.view
-        nf.eye = wp.vec3(*eye)
+        nf.view = wp.empty(nf.count * NEAR_R * NEAR_MU, dtype=wp.vec3, device=d)
+        K = wp.empty(NEAR_NU * NEAR_MU, dtype=float, device=d)
+        for k, (medium, *_) in enumerate(self.at):
+            dev.launch(azimuth_phase, NEAR_NU * NEAR_MU, [media, medium, K], d, work=float(NEAR_PHI))
+            dev.launch(near_view, NEAR_R * NEAR_MU, [self.L1[k], K, k * NEAR_R * NEAR_MU, nf.view], d,
+                       work=float(NEAR_NU))
+        nf.position = wp.array([a[1] for a in self.at], dtype=wp.vec3, device=d)
+        nf.rho = wp.array([a[2] for a in self.at], dtype=float, device=d)
+        nf.r_max = wp.array([a[3] for a in self.at], dtype=float, device=d)
+        nf.sigma_t = wp.array([a[4] for a in self.at], dtype=wp.vec3, device=d)
         return nf
+
+    def first_order(self, lat: Lattice, size: int) -> wp.array | None:
+        """The windowed lights' L1 at the lattice's nodes (node-major, ``size`` = n^3 D), or None
+        where no light has a window."""
+        if not self.at:
+            return None
+        L = wp.zeros(size, dtype=wp.vec3, device=self.device)
+        for k, (medium, pos, rho, r_max, sig) in enumerate(self.at):
+            dev.launch(near_at_nodes, size, [lat, wp.vec3(*pos), rho, r_max, wp.vec3(*sig), self.L1[k], L],
+                       self.device, work=8.0)
+        return L
 
 
 def _window_for(scene, light, cell: float):
@@ -342,7 +339,6 @@ def _window_for(scene, light, cell: float):
     whole on the lattice: not a point light, the media not all homogeneous, not exactly one
     medium at the light, or less than MIN_WINDOW_CELLS of room to the medium's boundary or a
     surface (surfaces smaller than SMALL_SURFACE times the window's reach are not counted)."""
-    from ..scene.model import LightKind, MediumKind
     if light.type != LightKind.POINT or not scene.media:
         return None
     if any(mm.type != MediumKind.HOMOGENEOUS for mm in scene.media):
