@@ -133,6 +133,68 @@ def segment_mean_inverse_square(o: wp.vec3, d: wp.vec3, t0: float, t1: float, p:
 
 
 
+@wp.func
+def ball_window(r: float, radius: float) -> float:
+    """(1 - (r / R)^2)^2 within ``radius`` R of a light, 0 beyond: the part of its 1/r^2 a
+    march takes ray by ray at equiangular points. What it leaves, (1 - w) / r^2 =
+    2 / R^2 - r^2 / R^4 inside the ball and 1/r^2 outside, is smooth and bounded (its integral
+    along a ray: ``segment_mean_outside_window``), so neighbouring rays may share samples of it."""
+    if r >= radius:
+        return 0.0
+    q = 1.0 - (r * r) / (radius * radius)
+    return q * q
+
+
+@wp.func
+def inverse_square_integral(h: float, u0: float, u1: float) -> float:
+    """int_u0^u1 du / (h^2 + u^2) for u0 <= u1 on one side of 0 (u0 u1 >= 0): atan of the
+    difference by the subtraction rule, h (u1 - u0) / (h^2 + u0 u1), so a tiny h loses no digits."""
+    return wp.atan(h * (u1 - u0) / (h * h + u0 * u1)) / h
+
+
+@wp.func
+def segment_mean_outside_window(o: wp.vec3, d: wp.vec3, t0: float, t1: float, p: wp.vec3, radius: float) -> float:
+    """Mean over t in [t0, t1] (d unit) of (1 - ``ball_window``(r, radius)) / r^2, r = |o + t d - p|:
+    1/r^2 outside the ball (``segment_mean_inverse_square``), 2 / R^2 - r^2 / R^4 inside, both in
+    closed form. radius 0: the plain mean of 1/r^2."""
+    rel = p - o
+    tc = wp.dot(rel, d)
+    h2 = wp.max(wp.dot(rel, rel) - tc * tc, 0.0)
+    dt = t1 - t0
+    if radius <= 0.0 or h2 >= radius * radius:
+        return segment_mean_inverse_square(o, d, t0, t1, p)
+    h = wp.max(wp.sqrt(h2), wp.max(1.0e-6 * dt, POSITION_EPS * wp.length(rel)))
+    r2 = radius * radius
+    if dt <= 1.0e-4 * radius:  # a step short beside the ball: the midpoint value
+        tm = 0.5 * (t0 + t1) - tc
+        q = h * h + tm * tm
+        return wp.where(q >= r2, 1.0 / q, 2.0 / r2 - q / (r2 * r2))
+    s = wp.sqrt(r2 - wp.min(h * h, r2))
+    u0 = t0 - tc
+    u1 = t1 - tc
+    total = float(0.0)
+    if u0 < -s:  # before the ball
+        total += inverse_square_integral(h, u0, wp.min(u1, -s))
+    if u1 > s:  # after it
+        total += inverse_square_integral(h, wp.max(u0, s), u1)
+    a = wp.max(u0, -s)
+    b = wp.min(u1, s)
+    if b > a:  # inside: (2 / R^2 - h^2 / R^4) - u^2 / R^4
+        total += (2.0 / r2 - h * h / (r2 * r2)) * (b - a) - (b * b * b - a * a * a) / (3.0 * r2 * r2)
+    return total / dt
+
+
+@wp.func
+def step_mean_outside_window(light: Emitter, e: wp.vec3, dist: float, o: wp.vec3, d: wp.vec3, t0: float, t1: float,
+                             radius: float):
+    """``step_mean_irradiance`` with a point or spot light's 1/d^2 replaced by its mean over the
+    step of what its ball leaves (``segment_mean_outside_window``). Directional lights: ``e``."""
+    if light.kind == DIRECTIONAL:
+        return e
+    e_d2 = wp.where(dist > 1.0e-10, e * (dist * dist), light.strength)  # I x falloff (x visibility)
+    return e_d2 * segment_mean_outside_window(o, d, t0, t1, light.position, radius)
+
+
 #: Beside a point or spot light a march step is split into equal angles at the light of at most
 #: ANGLE_STEP radians (``step_angle``), up to MAX_ANGLE_SAMPLES of them.
 ANGLE_STEP = wp.constant(0.1)

@@ -52,22 +52,33 @@ Where this departs from the paper, and why:
   beside a lamp otherwise miss or alias its peak (point-in-fog at 80x60, M = 4: 0.53 off its
   converged image before, against 2048 steps per pixel).
 * Beside a point or spot light the in-scattering peaks like 1/h across the rays (h a ray's
-  distance from the light), so neighbours' samples do not stand in for a pixel's own. Inside
-  a ball around each such light (``light_ball`` = 4: a radius of four M x M blocks of pixels
-  at the light's distance) every pixel marches its own ray at equiangular points (at most
-  0.1 rad apart as seen from the light; Kulla & Fajardo 2012) and adds it after the block sum;
-  the shared samples cover the rest of the ray (the fog-box and light-inside-fog rows of
-  results/multiple-scattering). ``light_ball`` = 0 is the paper's sharing throughout.
+  distance from the light), so neighbours' samples do not stand in for a pixel's own. Within a
+  ball around each such light every pixel marches its own ray at equiangular points (at most
+  0.1 rad apart as seen from the light; Kulla & Fajardo 2012), and the shared samples take
+  what the ball leaves. The split is smooth: the ball takes w(r) = (1 - (r/R)^2)^2 of the
+  light's 1/r^2, and the shared samples the rest, 2/R^2 - r^2/R^4 inside and 1/r^2 outside,
+  averaged over each sample's cell in closed form (``physics.lights.ball_window``,
+  ``segment_mean_outside_window``), so no ray's share jumps at the ball's edge. R is
+  ``light_ball`` M x M blocks of pixels at the light's distance (4 by default), and at least
+  ``BALL_PERIODS`` = 1 period of the interleaving (M^2 samples along the ray): closer than half a
+  period a ray's glow peaks inside one residue class, which the block sum takes from one row of
+  the window for M rows running, so the glow came out in steps of M pixels (a lamp 8 away in
+  fog 40 in radius, 96 x 72: 0.024 off the closed form on the rays 1 to 5 from it; now 0.002,
+  tests/test_light_shafts.py). ``light_ball`` = 0 is the paper's sharing throughout.
 
 At depth discontinuities the block sum adds samples of neighbouring rays of other
 lengths: a pixel on a near column next to the far wall borrows the wall pixels' longer
 samples, and vice versa, which leaves a halo up to M/2 pixels wide. Its error is measured
 in results/light-shafts-edges (edge pixels against the others). Beyond the paper, ``edges`` = 1
-(the default; 0: the paper's sum, as the paper's tables are measured) replaces the separable
-sum by a depth-aware one (``block_edges``): a pixel sums only the
-neighbours whose surface lies within ``edge_tolerance`` of its own depth and scales the sum
-by M^2 / (neighbours kept), which cuts that error 2.5-8 fold there (5 fold at M = 4) at M^2
-reads per pixel.
+(the default; 0: the paper's sum, as the paper's tables are measured)
+replaces the separable sum by a depth-aware one (``block_edges``): a pixel whose M x M window
+holds a neighbour whose surface lies beyond ``edge_tolerance`` of its own depth marches all N
+of its samples itself and borrows none, so there it is the per-pixel answer; the others take
+the plain sum. Only edge pixels pay (N instead of N / M^2 samples), and every pixel M^2 depth
+reads. (Keeping only the neighbours at a pixel's depth and rescaling for the classes left out,
+which this replaced, left an edge pixel the residue classes at one part of every
+M^2-sample period along its ray: they alias whatever peaks along it, as a lamp's glow beside a
+pole or under its arm, into dark and bright lines.)
 
 Leaves out (``frame.leaves_out``): the sky's light (the background) scattered once in the
 medium or reflected by surfaces, and, with ``multiple_scattering`` = 0, multiple scattering.
@@ -90,8 +101,8 @@ from ...geometry.raster import NO_HIT, key_hit, rasterise_visible, triangle_at
 from ...geometry.shadowmap import ShadowedLights, ShadowMap, texel_ray, texels
 from ...media.volume import Media, homogeneous_optical_depth, in_scatter_at, scattering_at, sigma_t_at
 from ...physics.constants import INF, RAY_EPS
-from ...physics.lights import (Emitter, angle_point, angle_samples, angle_share, ball_chord, step_angle,
-                               step_mean_irradiance)
+from ...physics.lights import (DIRECTIONAL, Emitter, angle_point, angle_samples, angle_share, ball_chord,
+                               ball_window, step_angle, step_mean_outside_window)
 from ...physics.transmittance import transmittance_rgb
 from ...pipeline import FLAG, Bias, Quality, Setting
 from ...scattering import BIASES as MS_BIASES
@@ -105,6 +116,11 @@ from .stages import ShaftStages
 from .view_geometry import far_distance, slice_plane
 
 dev.kernel_module(__name__)
+
+#: A point or spot light's ball is at least this many periods of the interleaving (M^2 samples
+#: along the ray) in radius: farther out the glow's peak along a ray, 2h wide at a distance h
+#: from the light, spans a whole period, so every residue class of a window shares it.
+BALL_PERIODS = 1.0
 
 NAME = "light_shafts"
 SETTINGS = {
@@ -123,15 +139,15 @@ SETTINGS = {
     "raster_tiles": Setting(-1, -1, 1, "1: one rasteriser thread per 16 x 16-pixel piece of a triangle (balanced "
                             "for GPUs); 0: one per triangle; -1: pieces on CUDA, triangles on the CPU",
                             names=("auto", "triangles", "pieces")),
-    "edges": Setting(1, 0, 1, "1: the block sum keeps to neighbours at a similar depth and rescales for the samples it "
-                     "leaves out (no halo at depth jumps; its error there and its cost: results/light-shafts-edges); "
+    "edges": Setting(1, 0, 1, "1: a pixel with a neighbour at another depth in its block marches all its samples "
+                     "itself (no halo at depth jumps; its error there and its cost: results/light-shafts-edges); "
                      "0: the paper's plain separable sum", names=FLAG),
     "edge_tolerance": Setting(0.1, 0.0, 10.0,
                               "edges = 1: relative depth difference beyond which a neighbour is left out"),
     "light_ball": Setting(4.0, 0.0, 64.0, "radius, in M-pixel blocks at the light's distance, of the ball around each "
                           "point or spot light inside which every pixel marches its own ray at equiangular points "
-                          "instead of sharing the block's samples (the light's peak stays in its pixel); 0: the "
-                          "paper's shared samples throughout"),
+                          "instead of sharing the block's samples (the light's peak stays in its pixel; at least "
+                          "one period of M^2 samples along the ray); 0: the paper's shared samples throughout"),
     **MS_SETTINGS,
     **EXTINCTION_SETTINGS,
     **LIGHT_VOLUME_SETTINGS,
@@ -211,43 +227,43 @@ def shade_visible_surface(offset: int, cam: RasterView, m: Media, s: Surfaces, s
 
 
 @wp.func
-def pixel_ball(light: Emitter, o: wp.vec3, d: wp.vec3, near: float) -> wp.vec2:
-    """Where the view ray o + t d crosses light's ball (``ball_chord``), whose radius is ``near``
-    (``ShaftSettings.near``) times the light's distance from the camera."""
-    return ball_chord(light, o, d, near * wp.length(light.position - o))
-
-
-@wp.func
-def outside_ball(c0: float, w: float, chord: wp.vec2) -> float:
-    """The length of the sample cell [c0, c0 + w] outside a light's ball (``ball_chord``)."""
-    return w - wp.max(wp.min(c0 + w, chord[1]) - wp.max(c0, chord[0]), 0.0)
+def ball_radius(light: Emitter, o: wp.vec3, st: ShaftSettings) -> float:
+    """The radius of a point or spot light's ball (``ball_window``): ``st.near`` times the light's
+    distance from the camera at o, and at least ``st.ball_floor``; 0 for a directional light."""
+    if light.kind == DIRECTIONAL:
+        return 0.0
+    return wp.max(st.near * wp.length(light.position - o), st.ball_floor)
 
 
 @wp.func
 def near_light(m: Media, sl: ShadowedLights, l: int, o: wp.vec3, d: wp.vec3, ta: float, tb: float,
-               chord: wp.vec2, shadow_steps: int, view_steps: int) -> wp.vec3:
+               radius: float, shadow_steps: int, view_steps: int) -> wp.vec3:
     """The in-scattered light of point or spot light l over the part of the view ray [ta, tb]
-    inside the light's ball (``chord``), at equiangular points (``physics.lights.angle_point``,
-    at most 0.1 rad apart as seen from the light), per pixel: the light's singular peak, which
-    the block sum of interleaved samples would spread over M x M pixels."""
+    inside the light's ball of ``radius``, weighted by ``ball_window``, at equiangular points
+    (``physics.lights.angle_point``, at most 0.1 rad apart as seen from the light), per pixel: the
+    light's singular peak, which the block sum of interleaved samples would spread over M x M
+    pixels. The shared samples take the rest (``step_mean_outside_window``)."""
+    light = sl.lights[l]
+    chord = ball_chord(light, o, d, radius)
     a = wp.max(ta, chord[0])
     b = wp.min(tb, chord[1])
     acc = wp.vec3(0.0)
     if a >= b:
         return acc
-    light = sl.lights[l]
     tc, h, phi = step_angle(light, o, d, a, b)
     n = angle_samples(phi)
     for j in range(n):
         t = wp.where(n > 1, angle_point(a, tc, h, phi, j, n), 0.5 * (a + b))
         x = o + t * d
         wi, e, tau = light_arriving(m, sl, l, x, wp.vec3(0.0), shadow_steps)
+        r = wp.length(light.position - x)
         if e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0:
             if n > 1:
-                e = angle_share(light, e, wp.length(light.position - x), h, phi, n, 1.0)
+                e = angle_share(light, e, r, h, phi, n, 1.0)
             else:
-                e = step_mean_irradiance(light, e, wp.length(light.position - x), o, d, a, b) * (b - a)
+                e = e * (b - a)
             tau_v = marched_optical_depth(m, o, d, 0.0, t, view_steps)
+            e = e * ball_window(r, radius)
             acc += wp.cw_mul(transmittance_rgb(tau_v + tau), wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e))
     return acc
 
@@ -256,11 +272,10 @@ def near_light(m: Media, sl: ShadowedLights, l: int, o: wp.vec3, d: wp.vec3, ta:
 def own_in_scatter(m: Media, sl: ShadowedLights, o: wp.vec3, d: wp.vec3, ta: float, tb: float,
                    st: ShaftSettings) -> wp.vec3:
     """What a pixel takes from no neighbour: the in-scattering of every point or spot light inside
-    its ball (``near_light``), which the shared samples skip."""
+    its ball (``near_light``), which the shared samples leave (``add_sample``)."""
     own = wp.vec3(0.0)
     for l in range(sl.lights.shape[0]):
-        chord = pixel_ball(sl.lights[l], o, d, st.near)
-        own += near_light(m, sl, l, o, d, ta, tb, chord, st.shadow_steps, st.steps)
+        own += near_light(m, sl, l, o, d, ta, tb, ball_radius(sl.lights[l], o, st), st.shadow_steps, st.steps)
     return own
 
 
@@ -268,20 +283,19 @@ def own_in_scatter(m: Media, sl: ShadowedLights, o: wp.vec3, d: wp.vec3, ta: flo
 def add_sample(acc: wp.vec3, m: Media, sl: ShadowedLights, ms: ScatteredLight, o: wp.vec3, d: wp.vec3, c0: float,
                w: float, x: wp.vec3, tau_v: wp.vec3, st: ShaftSettings) -> wp.vec3:
     """``acc`` plus one shared sample's terms: at x, in the cell [c0, c0 + w] of the view ray,
-    optical depth ``tau_v`` from the camera, each light's in-scattering over the part of the cell
-    outside its ball (the ball is the pixel's own, ``near_light``), a point light's 1/d^2
-    averaged over the cell, then the light scattered more than once."""
+    optical depth ``tau_v`` from the camera, each light's in-scattering with a point or spot
+    light's 1/d^2 averaged over the cell less what its ball takes per pixel (``near_light``,
+    ``step_mean_outside_window``: smooth, so neighbours may share it), then the light scattered
+    more than once."""
     total = acc
     for l in range(sl.lights.shape[0]):
-        chord = pixel_ball(sl.lights[l], o, d, st.near)
-        w_l = outside_ball(c0, w, chord)
-        if w_l > 0.0:
-            wi, e, tau = light_arriving(m, sl, l, x, wp.vec3(0.0), st.shadow_steps)
-            if e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0:
-                e = step_mean_irradiance(sl.lights[l], e, wp.length(sl.lights[l].position - x), o, d,
-                                         c0, c0 + w)  # a point light's 1/d^2 averaged over the cell
-                li = wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e)
-                total += wp.cw_mul(transmittance_rgb(tau_v + tau), li) * w_l
+        wi, e, tau = light_arriving(m, sl, l, x, wp.vec3(0.0), st.shadow_steps)
+        if e[0] > 0.0 or e[1] > 0.0 or e[2] > 0.0:
+            light = sl.lights[l]
+            e = step_mean_outside_window(light, e, wp.length(light.position - x), o, d, c0, c0 + w,
+                                         ball_radius(light, o, st))
+            li = wp.cw_mul(in_scatter_at(m, x, wp.dot(d, wi)), e)
+            total += wp.cw_mul(transmittance_rgb(tau_v + tau), li) * w
     if ms.lat.n > 0:
         total += wp.cw_mul(transmittance_rgb(tau_v), scattered_light(ms, scattering_at(m, x), x)) * w
     return total
@@ -289,11 +303,11 @@ def add_sample(acc: wp.vec3, m: Media, sl: ShadowedLights, ms: ScatteredLight, o
 
 @wp.func
 def homogeneous_samples(m: Media, sl: ShadowedLights, ms: ScatteredLight, o: wp.vec3, d: wp.vec3, ta: float,
-                        tb: float, dl: float, k0: int, u: float, st: ShaftSettings) -> wp.vec3:
-    """The sum of a pixel's samples k = k0, k0 + M^2, ... (cells of length ``dl`` from ``ta``, cut
-    at ``tb``; a sample at ``u`` of its cell) in closed-form media."""
+                        tb: float, dl: float, k0: int, stride: int, u: float, st: ShaftSettings) -> wp.vec3:
+    """The sum of a pixel's samples k = k0, k0 + stride, ... (M^2 when interleaved; cells of
+    length ``dl`` from ``ta``, cut at ``tb``; a sample at ``u`` of its cell) in closed-form media."""
     acc = wp.vec3(0.0)
-    for k in range(k0, st.steps, st.block * st.block):
+    for k in range(k0, st.steps, stride):
         c0 = ta + float(k) * dl  # this sample's cell, cut at the surface
         if c0 >= tb:
             break
@@ -307,11 +321,10 @@ def homogeneous_samples(m: Media, sl: ShadowedLights, ms: ScatteredLight, o: wp.
 
 @wp.func
 def heterogeneous_samples(m: Media, sl: ShadowedLights, ms: ScatteredLight, o: wp.vec3, d: wp.vec3, ta: float,
-                          tb: float, dl: float, k0: int, u: float, st: ShaftSettings):
+                          tb: float, dl: float, k0: int, stride: int, u: float, st: ShaftSettings):
     """``homogeneous_samples`` where a medium is a grid: the optical depth from the camera is
     accumulated at every one of the N steps, the lights are summed at this pixel's samples only.
     Returns (the sum, the optical depth from the camera to ``tb``)."""
-    stride = st.block * st.block
     acc = wp.vec3(0.0)
     tau = homogeneous_optical_depth(m, o, d, 0.0, ta)
     for k in range(st.steps):
@@ -329,12 +342,45 @@ def heterogeneous_samples(m: Media, sl: ShadowedLights, ms: ScatteredLight, o: w
     return acc, tau
 
 
+@wp.func
+def same_depth(tp: float, tq: float, tolerance: float) -> bool:
+    """Two pixels' visible surfaces within ``tolerance`` (relative) of each other, or both none."""
+    if tp < INF and tq < INF:
+        return wp.abs(tq - tp) <= tolerance * wp.min(tp, tq)
+    return tp >= INF and tq >= INF
+
+
+@wp.func
+def window_start(p: int, size: int, block: int) -> int:
+    """The first pixel of the M-wide window around p, shifted inside the image at its borders."""
+    return wp.clamp(p - block / 2, 0, wp.max(size - block, 0))
+
+
+@wp.func
+def whole_window(t_hit: wp.array(dtype=float), px: int, py: int, width: int, height: int, block: int,
+                 tolerance: float) -> bool:
+    """Every pixel of (px, py)'s M x M window sees a surface at its depth (``same_depth``): the
+    depth-aware block sum then takes all M^2 residue classes, as the plain one does."""
+    x0 = window_start(px, width, block)
+    y0 = window_start(py, height, block)
+    tp = t_hit[py * width + px]
+    for j in range(block):
+        for i in range(block):
+            if not same_depth(tp, t_hit[(y0 + j) * width + x0 + i], tolerance):
+                return False
+    return True
+
+
 @wp.kernel
 def march_shafts(offset: int, cam: RasterView, m: Media, sl: ShadowedLights, segs: wp.array(dtype=wp.vec3),
-                 background: wp.vec3, st: ShaftSettings, ms: ScatteredLight, out: ShaftTerms):
+                 t_hit: wp.array(dtype=float), background: wp.vec3, st: ShaftSettings, ms: ScatteredLight,
+                 out: ShaftTerms):
     """This pixel's share of the in-scattering sum (its samples k = k0, k0 + M^2, ...) into
     ``out.partial``, and into ``out.own`` what it takes from no neighbour: each point or spot
-    light's in-scattering inside the light's ball (``near_light``; the shared samples skip it).
+    light's in-scattering inside the light's ball (``near_light``; the shared samples skip it),
+    and, at a depth edge (``st.edges``: a neighbour in its window at another depth), all N of its
+    samples: the residue classes its window keeps there sit at one part of every M^2-sample
+    period along the ray and alias what peaks along it (a lamp beside a pole or under its arm).
     With surfaces, the surface term was attenuated by the surface pass; without, the background
     is attenuated here into ``out.surface``."""
     tid = wp.tid() + offset
@@ -349,21 +395,36 @@ def march_shafts(offset: int, cam: RasterView, m: Media, sl: ShadowedLights, seg
     background_done = bool(False)
     own = wp.vec3(0.0)
     if ta < tb and st.scattering == 1:
-        own = own_in_scatter(m, sl, o, d, ta, tb, st)
         t_end = tb  # where the samples are spread: up to the surface (paper) or through the media
         if st.spacing == 1:
             t_end = b
         dl = (t_end - ta) / float(st.steps)
         k0 = px % st.block + st.block * (py % st.block)
+        stride = st.block * st.block
+        if st.near > 0.0:
+            # a ray passing a lamp within half a period of the interleaving (M^2 samples) has its
+            # glow's peak in one residue class, which the block sum takes from one row of the
+            # window for M rows running: the glow held in steps of M pixels. The ball marches it.
+            pixel = st
+            pixel.ball_floor = BALL_PERIODS * float(stride) * dl
+            st = pixel
+        own = own_in_scatter(m, sl, o, d, ta, tb, st)
         u = 0.5
         if st.jitter == 1:
             rng = wp.rand_init(st.seed, tid)
             u = wp.randf(rng)
         hetero = m.het_majorant[0] > 0.0 or m.het_majorant[1] > 0.0 or m.het_majorant[2] > 0.0
         if not hetero:
-            acc = homogeneous_samples(m, sl, ms, o, d, ta, tb, dl, k0, u, st)
+            acc = homogeneous_samples(m, sl, ms, o, d, ta, tb, dl, k0, stride, u, st)
         else:
-            acc, tau = heterogeneous_samples(m, sl, ms, o, d, ta, tb, dl, k0, u, st)
+            acc, tau = heterogeneous_samples(m, sl, ms, o, d, ta, tb, dl, k0, stride, u, st)
+        if st.edges == 1 and stride > 1:
+            if not whole_window(t_hit, px, py, cam.width, cam.height, st.block, st.edge_tolerance):
+                if not hetero:
+                    own += homogeneous_samples(m, sl, ms, o, d, ta, tb, dl, 0, 1, u, st)
+                else:
+                    every, tau_all = heterogeneous_samples(m, sl, ms, o, d, ta, tb, dl, 0, 1, u, st)
+                    own += every
             if st.has_depth == 0:  # the background through the optical depth this march summed
                 tau += homogeneous_optical_depth(m, o, d, ta, tb)
                 out.surface[tid] = wp.cw_mul(background, transmittance_rgb(tau))
@@ -407,30 +468,22 @@ def block_sum_cols(offset: int, rows: wp.array(dtype=wp.vec3), surface: wp.array
 def block_sum_depth_aware(offset: int, values: wp.array(dtype=wp.vec3), surface: wp.array(dtype=wp.vec3),
                           own: wp.array(dtype=wp.vec3), t_hit: wp.array(dtype=float), width: int, height: int,
                           block: int, tolerance: float, image: wp.array(dtype=wp.vec3)):
-    """The M x M block sum over the neighbours whose visible surface lies within ``tolerance``
-    (relative) of this pixel's, scaled by M^2 / (neighbours kept): the samples of the residue
-    classes left out are replaced by the mean of those kept. Where depth is smooth every
-    neighbour is kept and this is the plain sum; at a jump, a pixel no longer borrows samples
-    of rays of another length (the halo of ``block_sum_rows``/``cols``). Not separable: M^2 reads."""
+    """The M x M block sum where the whole window lies at this pixel's depth (``whole_window``);
+    a pixel at a depth edge marched all of its samples itself (``march_shafts``, in ``own``) and
+    takes nothing from its neighbours: it no longer borrows samples of rays of another length
+    (the halo of ``block_sum_rows``/``cols``), nor keeps only some residue classes. M^2 reads."""
     tid = wp.tid() + offset
     px = tid % width
     py = tid / width
-    x0 = wp.clamp(px - block / 2, 0, wp.max(width - block, 0))
-    y0 = wp.clamp(py - block / 2, 0, wp.max(height - block, 0))
-    tp = t_hit[tid]
     acc = wp.vec3(0.0)
-    kept = int(0)
-    for j in range(block):
-        row = (y0 + j) * width + x0
-        for i in range(block):
-            tq = t_hit[row + i]
-            same = tp >= INF and tq >= INF
-            if tp < INF and tq < INF:
-                same = wp.abs(tq - tp) <= tolerance * wp.min(tp, tq)
-            if same:
+    if whole_window(t_hit, px, py, width, height, block, tolerance):
+        x0 = window_start(px, width, block)
+        y0 = window_start(py, height, block)
+        for j in range(block):
+            row = (y0 + j) * width + x0
+            for i in range(block):
                 acc += values[row + i]
-                kept += 1
-    image[tid] = surface[tid] + own[tid] + acc * (float(block * block) / float(wp.max(kept, 1)))
+    image[tid] = surface[tid] + own[tid] + acc
 
 
 @wp.kernel
@@ -521,8 +574,9 @@ class LightShafts(ShaftStages):
         out.surface = self.radiance if has_depth else self.buffers.scratch("surface", npix, wp.vec3)
         out.partial = self.buffers.scratch("partial", npix, wp.vec3)
         out.own = self.buffers.scratch("own", npix, wp.vec3)
+        t_hit = self.t_hit if has_depth else self.shadows.depth  # without surfaces: no edges, not read
         dev.launch(march_shafts, npix, [camera_view(pinhole(cam)), u.media.struct, self.shadows.lights(), self.segs,
-                                        wp.vec3(*scene.background), st, self.multiple.struct(), out], self.device,
+                                        t_hit, wp.vec3(*scene.background), st, self.multiple.struct(), out], self.device,
                    work=self.pixel_work(st.steps / st.block**2, self._view_samples()))
         if st.block == 1 or not cfg["scattering"] or not scene.media:
             self.image = wp.empty(npix, dtype=wp.vec3, device=self.device)  # the frame's own: not reused

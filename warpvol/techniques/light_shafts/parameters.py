@@ -21,6 +21,9 @@ class ShaftSettings:
     spacing: int
     has_depth: int  # 0 when the scene has no surfaces (depth pass skipped)
     near: float  # a point or spot light's ball, marched per pixel: its radius per unit distance from the camera
+    ball_floor: float  # the ball's least radius, set per pixel by the march (``BALL_PERIODS``)
+    edges: int  # 1: a pixel at a depth edge marches all N samples itself (the depth-aware block sum)
+    edge_tolerance: float
 
 
 @wp.struct
@@ -42,6 +45,9 @@ def shaft_settings(cfg, block: int, cam, has_depth: bool) -> ShaftSettings:
     st.spacing = cfg["spacing"]
     st.has_depth = int(has_depth)
     st.near = cfg["light_ball"] * st.block * pixel_width(cam)
+    st.ball_floor = 0.0
+    st.edges = int(cfg["edges"] == 1 and has_depth)
+    st.edge_tolerance = cfg["edge_tolerance"]
     return st
 
 

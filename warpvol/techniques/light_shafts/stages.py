@@ -63,7 +63,7 @@ class ShaftStages(Technique):
                   needed=occluders),
             Stage("march", self._march, reads=("camera", "background"),
                   settings=("steps", "block", "jitter", "scattering", "shadow_steps", "seed", "spacing",
-                            "multiple_scattering", "light_ball", "shadow_grid"),
+                            "multiple_scattering", "light_ball", "shadow_grid", "edges", "edge_tolerance"),
                   after=("medium", "lights", "shadow_maps", "visible", "surface", "multiple_view", "light_volume")),
             Stage("block_rows", self._block_rows, settings=("block",), after=("march",),
                   needed=interleaved and not depth_aware),
