@@ -261,14 +261,17 @@ def window_all_similar(depth, m, tol):
 
 def test_depth_aware_block_sum_removes_the_halo(device):
     """At a depth jump the paper's block sum borrows samples of rays of another length (a halo M/2
-    pixels wide). With ``edges`` on, a pixel whose window holds a neighbour at another depth
-    (beyond 10 %) marches all N of its samples itself and borrows none: there it is the same N
-    taken per pixel, to float rounding. (Keeping only the neighbours at its depth and rescaling,
-    as before, left each edge pixel a few residue classes at one part of every M^2-sample period
-    along its ray, which aliased a lamp's peak into dark and bright lines along a lamp's arm.)
-    Where every neighbour is kept it is the plain sum, to float rounding (measured 2e-7). The
-    light's ball (``light_ball``, which every pixel marches itself and shares with no neighbour)
-    is off, so that all the samples are shared as in the paper."""
+    pixels wide). With ``edges`` on, a pixel leaves out the neighbours in its window at another
+    depth (beyond 10 %) and marches their residue classes along its own ray: it keeps all N
+    samples and borrows only from rays like its own. Its error there, against the same N taken
+    per pixel, is then the interleaving's own error elsewhere (neighbouring rays stand in for
+    the pixel's: measured 0.085 against 0.057 elsewhere, the test allows 2x) and under a third of
+    the paper's sum's (measured 0.50). (Rescaling the classes kept instead, as before, left each
+    edge pixel a few classes at one part of every M^2-sample period along its ray, which aliased
+    a lamp's peak into dark and bright lines along a lamp's arm.) Where every neighbour is kept
+    it is the plain sum, to float rounding (measured 2e-7). The light's ball (``light_ball``,
+    which every pixel marches itself and shares with no neighbour) is off, so that all the
+    samples are shared as in the paper."""
     scene = pillar_scene(width=96, height=72)
     full = shafts(scene, device, steps=64, block=1, jitter=0, light_ball=0).image
     r = wv.Renderer(scene, technique="light_shafts", device=device, multiple_scattering=0, steps=64, block=4, jitter=0,
@@ -278,8 +281,8 @@ def test_depth_aware_block_sum_removes_the_halo(device):
     aware = shafts(scene, device, steps=64, block=4, jitter=0, edges=1, light_ball=0).image
     smooth = window_all_similar(depth, 4, 0.1)
     assert 0.02 < (~smooth).mean() < 0.5  # the pillar's and floor's edges
-    assert np.abs(plain - full)[~smooth].mean() > 0.05 * full.mean()  # the halo is there to remove
-    assert np.abs(aware - full)[~smooth].max() <= 1e-5 * full.max()
+    err = lambda img, where: np.abs(img - full)[where].mean() / full.mean()  # noqa: E731
+    assert err(aware, ~smooth) < min(2.0 * err(plain, smooth), 0.3 * err(plain, ~smooth))
     assert np.abs(aware - plain)[smooth].max() <= 1e-5 * plain.max()
 
 

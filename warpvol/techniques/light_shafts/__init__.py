@@ -72,13 +72,13 @@ samples, and vice versa, which leaves a halo up to M/2 pixels wide. Its error is
 in results/light-shafts-edges (edge pixels against the others). Beyond the paper, ``edges`` = 1
 (the default; 0: the paper's sum, as the paper's tables are measured)
 replaces the separable sum by a depth-aware one (``block_edges``): a pixel whose M x M window
-holds a neighbour whose surface lies beyond ``edge_tolerance`` of its own depth marches all N
-of its samples itself and borrows none, so there it is the per-pixel answer; the others take
-the plain sum. Only edge pixels pay (N instead of N / M^2 samples), and every pixel M^2 depth
-reads. (Keeping only the neighbours at a pixel's depth and rescaling for the classes left out,
-which this replaced, left an edge pixel the residue classes at one part of every
-M^2-sample period along its ray: they alias whatever peaks along it, as a lamp's glow beside a
-pole or under its arm, into dark and bright lines.)
+holds neighbours whose surface lies beyond ``edge_tolerance`` of its own depth leaves their
+samples out and marches their residue classes along its own ray instead: it still has all N
+samples and borrows none of a ray of another length. Only edge pixels pay (their missing
+classes' samples), and every pixel M^2 depth reads. (Rescaling the classes kept for those
+left out, which this replaced, left an edge pixel the classes at one part of every M^2-sample
+period along its ray: they alias whatever peaks along it, as a lamp's glow beside a pole or
+under its arm, into dark and bright lines.)
 
 Leaves out (``frame.leaves_out``): the sky's light (the background) scattered once in the
 medium or reflected by surfaces, and, with ``multiple_scattering`` = 0, multiple scattering.
@@ -139,7 +139,7 @@ SETTINGS = {
     "raster_tiles": Setting(-1, -1, 1, "1: one rasteriser thread per 16 x 16-pixel piece of a triangle (balanced "
                             "for GPUs); 0: one per triangle; -1: pieces on CUDA, triangles on the CPU",
                             names=("auto", "triangles", "pieces")),
-    "edges": Setting(1, 0, 1, "1: a pixel with a neighbour at another depth in its block marches all its samples "
+    "edges": Setting(1, 0, 1, "1: a pixel marches the samples of the neighbours in its block at another depth "
                      "itself (no halo at depth jumps; its error there and its cost: results/light-shafts-edges); "
                      "0: the paper's plain separable sum", names=FLAG),
     "edge_tolerance": Setting(0.1, 0.0, 10.0,
@@ -356,31 +356,17 @@ def window_start(p: int, size: int, block: int) -> int:
     return wp.clamp(p - block / 2, 0, wp.max(size - block, 0))
 
 
-@wp.func
-def whole_window(t_hit: wp.array(dtype=float), px: int, py: int, width: int, height: int, block: int,
-                 tolerance: float) -> bool:
-    """Every pixel of (px, py)'s M x M window sees a surface at its depth (``same_depth``): the
-    depth-aware block sum then takes all M^2 residue classes, as the plain one does."""
-    x0 = window_start(px, width, block)
-    y0 = window_start(py, height, block)
-    tp = t_hit[py * width + px]
-    for j in range(block):
-        for i in range(block):
-            if not same_depth(tp, t_hit[(y0 + j) * width + x0 + i], tolerance):
-                return False
-    return True
-
-
 @wp.kernel
 def march_shafts(offset: int, cam: RasterView, m: Media, sl: ShadowedLights, segs: wp.array(dtype=wp.vec3),
                  t_hit: wp.array(dtype=float), background: wp.vec3, st: ShaftSettings, ms: ScatteredLight,
                  out: ShaftTerms):
     """This pixel's share of the in-scattering sum (its samples k = k0, k0 + M^2, ...) into
     ``out.partial``, and into ``out.own`` what it takes from no neighbour: each point or spot
-    light's in-scattering inside the light's ball (``near_light``; the shared samples skip it),
-    and, at a depth edge (``st.edges``: a neighbour in its window at another depth), all N of its
-    samples: the residue classes its window keeps there sit at one part of every M^2-sample
-    period along the ray and alias what peaks along it (a lamp beside a pole or under its arm).
+    light's in-scattering inside the light's ball (``near_light``; the shared samples leave it),
+    and, at a depth edge (``st.edges``), the residue classes of the neighbours in its window at
+    another depth, which the depth-aware block sum leaves out: without them, the classes kept
+    sit at one part of every M^2-sample period along the ray and alias what peaks along it (a
+    lamp beside a pole or under its arm).
     With surfaces, the surface term was attenuated by the surface pass; without, the background
     is attenuated here into ``out.surface``."""
     tid = wp.tid() + offset
@@ -418,13 +404,19 @@ def march_shafts(offset: int, cam: RasterView, m: Media, sl: ShadowedLights, seg
             acc = homogeneous_samples(m, sl, ms, o, d, ta, tb, dl, k0, stride, u, st)
         else:
             acc, tau = heterogeneous_samples(m, sl, ms, o, d, ta, tb, dl, k0, stride, u, st)
-        if st.edges == 1 and stride > 1:
-            if not whole_window(t_hit, px, py, cam.width, cam.height, st.block, st.edge_tolerance):
-                if not hetero:
-                    own += homogeneous_samples(m, sl, ms, o, d, ta, tb, dl, 0, 1, u, st)
-                else:
-                    every, tau_all = heterogeneous_samples(m, sl, ms, o, d, ta, tb, dl, 0, 1, u, st)
-                    own += every
+        if st.edges == 1 and stride > 1:  # the classes of the neighbours at another depth: marched here
+            x0 = window_start(px, cam.width, st.block)
+            y0 = window_start(py, cam.height, st.block)
+            tp = t_hit[tid]
+            for j in range(st.block):
+                for i in range(st.block):
+                    if not same_depth(tp, t_hit[(y0 + j) * cam.width + x0 + i], st.edge_tolerance):
+                        k = (x0 + i) % st.block + st.block * ((y0 + j) % st.block)
+                        if not hetero:
+                            own += homogeneous_samples(m, sl, ms, o, d, ta, tb, dl, k, stride, u, st)
+                        else:
+                            missing, tau_k = heterogeneous_samples(m, sl, ms, o, d, ta, tb, dl, k, stride, u, st)
+                            own += missing
             if st.has_depth == 0:  # the background through the optical depth this march summed
                 tau += homogeneous_optical_depth(m, o, d, ta, tb)
                 out.surface[tid] = wp.cw_mul(background, transmittance_rgb(tau))
@@ -468,20 +460,22 @@ def block_sum_cols(offset: int, rows: wp.array(dtype=wp.vec3), surface: wp.array
 def block_sum_depth_aware(offset: int, values: wp.array(dtype=wp.vec3), surface: wp.array(dtype=wp.vec3),
                           own: wp.array(dtype=wp.vec3), t_hit: wp.array(dtype=float), width: int, height: int,
                           block: int, tolerance: float, image: wp.array(dtype=wp.vec3)):
-    """The M x M block sum where the whole window lies at this pixel's depth (``whole_window``);
-    a pixel at a depth edge marched all of its samples itself (``march_shafts``, in ``own``) and
-    takes nothing from its neighbours: it no longer borrows samples of rays of another length
-    (the halo of ``block_sum_rows``/``cols``), nor keeps only some residue classes. M^2 reads."""
+    """The M x M block sum over the neighbours whose visible surface lies within ``tolerance``
+    (relative) of this pixel's (``same_depth``): where depth is smooth, every neighbour and the
+    plain sum; at a jump, the residue classes of the neighbours left out were marched along this
+    pixel's own ray (``march_shafts``, in ``own``), so it borrows no samples of rays of another
+    length (the halo of ``block_sum_rows``/``cols``) and still has all N. Not separable: M^2 reads."""
     tid = wp.tid() + offset
     px = tid % width
     py = tid / width
+    x0 = window_start(px, width, block)
+    y0 = window_start(py, height, block)
+    tp = t_hit[tid]
     acc = wp.vec3(0.0)
-    if whole_window(t_hit, px, py, width, height, block, tolerance):
-        x0 = window_start(px, width, block)
-        y0 = window_start(py, height, block)
-        for j in range(block):
-            row = (y0 + j) * width + x0
-            for i in range(block):
+    for j in range(block):
+        row = (y0 + j) * width + x0
+        for i in range(block):
+            if same_depth(tp, t_hit[row + i], tolerance):
                 acc += values[row + i]
     image[tid] = surface[tid] + own[tid] + acc
 
