@@ -258,15 +258,23 @@ def phase_sample(ph: PhaseParams, table: wp.array(dtype=float), d: wp.vec3, u1: 
     else:
         cos_theta = 1.0 - 2.0 * u1
     wi = direction_from_cos(d, cos_theta, u2)
-    pdf = INV_4PI
-    if ph.kind == HG or ph.kind == CORNETTE_SHANKS:
-        pdf = henyey_greenstein(ph.g, cos_theta)
-    elif ph.kind == TABULATED:
-        pdf = tabulated(table, ph.offset, ph.n, cos_theta)
-    elif ph.kind == HG_DRAINE:
-        pdf = hg_draine(ph, cos_theta)
+    pdf = phase_sample_pdf(ph, table, cos_theta)
     p = phase_eval(ph, table, cos_theta)
     return wi, p / pdf, pdf
+
+
+@wp.func
+def phase_sample_pdf(ph: PhaseParams, table: wp.array(dtype=float), cos_theta: float) -> float:
+    """The density (1/sr) with which ``phase_sample`` draws a direction at ``cos_theta`` to the
+    travel direction: p itself where it is sampled exactly, HG of the same g for
+    Cornette-Shanks, uniform for Rayleigh."""
+    if ph.kind == HG or ph.kind == CORNETTE_SHANKS:
+        return henyey_greenstein(ph.g, cos_theta)
+    if ph.kind == TABULATED:
+        return tabulated(table, ph.offset, ph.n, cos_theta)
+    if ph.kind == HG_DRAINE:
+        return hg_draine(ph, cos_theta)
+    return INV_4PI
 
 
 def tabulate(values: np.ndarray) -> np.ndarray:

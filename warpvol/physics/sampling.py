@@ -4,7 +4,7 @@ point (Kulla & Fajardo 2012), the power heuristic (Veach 1997), an orthonormal f
 
 import warp as wp
 
-from .constants import TWO_PI
+from .constants import PI, TWO_PI
 
 
 @wp.func
@@ -67,3 +67,24 @@ def cosine_direction(n: wp.vec3, u1: float, u2: float) -> wp.vec3:
     phi = TWO_PI * u2
     tx, ty = orthonormal_basis(n)
     return wp.normalize(r * wp.cos(phi) * tx + r * wp.sin(phi) * ty + wp.sqrt(wp.max(0.0, 1.0 - r * r)) * n)
+
+
+@wp.func
+def angle_uniform_direction(axis: wp.vec3, u1: float, u2: float) -> wp.vec3:
+    """A direction at an angle alpha = pi u1 from the unit ``axis``, azimuth 2 pi u2: uniform in
+    the angle, so its density on the sphere, 1 / (2 pi^2 sin alpha), grows like 1/alpha toward
+    the axis (``angle_uniform_pdf``). Aimed at a point light, it samples the light's glow seen
+    from afar, whose radiance grows like 1/alpha toward the light, with a bounded ratio."""
+    alpha = PI * u1
+    phi = TWO_PI * u2
+    tx, ty = orthonormal_basis(axis)
+    sa = wp.sin(alpha)
+    return wp.normalize(sa * wp.cos(phi) * tx + sa * wp.sin(phi) * ty + wp.cos(alpha) * axis)
+
+
+@wp.func
+def angle_uniform_pdf(axis: wp.vec3, w: wp.vec3) -> float:
+    """The density on the sphere of ``angle_uniform_direction`` about ``axis`` at the unit w:
+    1 / (2 pi^2 sin alpha), held finite on the axis itself (sin alpha at least 1e-7)."""
+    c = wp.clamp(wp.dot(axis, w), -1.0, 1.0)
+    return 1.0 / (2.0 * PI * PI * wp.max(wp.sqrt(wp.max(1.0 - c * c, 0.0)), 1.0e-7))
