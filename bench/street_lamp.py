@@ -9,8 +9,12 @@ floor (sigma_t 0.2, albedo 0.9, HG g 0.5), the camera inside the haze. Each row 
 SPP samples): the lowest and highest ratio of a block's mean to the reference's, the image mean's
 ratio and the relative RMSE. The moving lamp: the lamp moved 0.12 to the right in steps of 0.01,
 raymarch at its defaults through one Renderer; the largest step of the frame mean and its whole
-change, beside the reference's own change over the move (its two ends, SPP samples each). Writes
-data.json and README.md under --out.
+change, beside the reference's own change over the move (its two ends, SPP samples each); the
+moving camera: the same for the camera moved 0.12 sideways. The reference's noise: two seeds at
+NOISE_SPP, with and without the continuations aimed at the lamp (``reference.LAMP_SHARE``), the
+relative standard error of one render away from the lamp's core and over the whole image, and
+the same at equal time (noise x sqrt(seconds / the aimed render's seconds)). Writes data.json
+and README.md under --out.
 """
 
 from __future__ import annotations
@@ -24,11 +28,15 @@ import numpy as np
 import warp as wp
 
 import warpvol as wv
+from warpvol.scene import procedural
 
 from .harness import device_name, git_commit, time_frames
 
 WIDTH, HEIGHT, BLOCK = 160, 120, 8
 SPP = 1024
+NOISE_SPP = 64
+#: the lamp's core, left out of the noise away from it: 16 pixels around the lamp's own pixel
+CORE = 16
 #: what each row renders: (label, technique, settings)
 ROWS = [
     ("raymarch (defaults)", "raymarch", {}),
@@ -36,20 +44,13 @@ ROWS = [
     ("raymarch, 16 nodes a side", "raymarch", {"multiple_scattering": 16}),
     ("raymarch, single scattering", "raymarch", {"multiple_scattering": 0}),
     ("light_shafts (defaults)", "light_shafts", {}),
+    ("light_shafts, every sample per pixel (block 1)", "light_shafts", {"block": 1}),
     ("particle_glow (defaults)", "particle_glow", {}),
 ]
 
 
 def street_lamp(x: float = 0.6) -> dict:
-    return {"name": "street-lamp", "background": [0.01, 0.012, 0.02],
-            "camera": {"origin": [0.0, 1.5, 8.0], "target": [0.0, 2.0, 0.0], "fov_y": 45.0, "width": WIDTH,
-                       "height": HEIGHT},
-            "lights": [{"type": "point", "position": [x, 3.5, 0.0], "intensity": [12.0, 9.0, 5.0]}],
-            "media": [{"type": "homogeneous", "shape": "box", "center": [0.0, 3.0, 0.0], "size": [20.0, 6.0, 20.0],
-                       "sigma_t": 0.2, "albedo": 0.9, "phase": {"type": "hg", "g": 0.5}}],
-            "surfaces": [{"type": "plane", "center": [0.0, 0.0, 0.0], "size": [20.0, 20.0], "diffuse": 0.4},
-                         {"type": "box", "center": [0.0, 1.8, 0.0], "size": [0.1, 3.6, 0.1], "diffuse": 0.2},
-                         {"type": "box", "center": [0.35, 3.65, 0.0], "size": [0.8, 0.05, 0.1], "diffuse": 0.2}]}
+    return procedural.street_lamp(x, WIDTH, HEIGHT)
 
 
 def blocks(image: np.ndarray) -> np.ndarray:
@@ -87,11 +88,59 @@ def main(argv=None) -> None:
               "reference_change": float(moved.mean() / truth.mean() - 1.0)}
     print(f"moving lamp: largest step {motion['largest_step']:.4f}, change {motion['change']:+.4f} "
           f"(reference {motion['reference_change']:+.4f})", flush=True)
+    r = wv.Renderer(street_lamp(), technique="raymarch", device="cpu")
+    means = [float(r.render().image.mean())]
+    for i in range(1, 13):
+        r.update(camera=dict(origin=[0.01 * i, 1.5, 8.0]))
+        means.append(float(r.render().image.mean()))
+    m = np.array(means) / means[0]
+    cam_end = street_lamp()
+    cam_end["camera"]["origin"] = [0.12, 1.5, 8.0]
+    cam_moved = wv.render(cam_end, "reference", device="cpu", spp=SPP, pixel_area=0, seed=3).image
+    camera = {"means": m.tolist(), "largest_step": float(np.abs(np.diff(m)).max()), "change": float(m[-1] - 1.0),
+              "reference_change": float(cam_moved.mean() / truth.mean() - 1.0)}
+    print(f"moving camera: largest step {camera['largest_step']:.4f}, change {camera['change']:+.4f} "
+          f"(reference {camera['reference_change']:+.4f})", flush=True)
+    noise = reference_noise(truth)
     doc = {"command": "PYTHONPATH=. .venv/bin/python -m bench.street_lamp", "device": device_name("cpu"),
            "warp": wp.config.version, "commit": git_commit(), "measured": time.strftime("%Y-%m-%d %H:%M:%S"),
-           "scene": street_lamp(), "spp": SPP, "reference_seconds": ref_seconds, "rows": rows, "moving_lamp": motion}
+           "scene": street_lamp(), "spp": SPP, "reference_seconds": ref_seconds, "rows": rows, "moving_lamp": motion,
+           "moving_camera": camera, "noise_spp": NOISE_SPP, "reference_noise": noise}
     (out / "data.json").write_text(json.dumps(doc, indent=1) + "\n")
     _readme(doc, out / "README.md")
+
+
+def reference_noise(truth: np.ndarray) -> list[dict]:
+    """The reference's noise on this scene with the continuations aimed at the lamp (LAMP_SHARE)
+    and without (0): per row, seconds per render and the relative standard error of one render
+    (two seeds) away from the lamp's core and over the whole image."""
+    from warpvol.techniques import reference
+
+    lamp = np.unravel_index(np.argmax(truth.mean(axis=2)), truth.shape[:2])
+    yy, xx = np.mgrid[:HEIGHT, :WIDTH]
+    away = np.maximum(np.abs(yy - lamp[0]), np.abs(xx - lamp[1])) > CORE
+    rows, share = [], reference.LAMP_SHARE
+    try:
+        for label, s in (("phase and cosine directions only", 0.0), (f"aimed at the lamp (share {share})", share)):
+            reference.LAMP_SHARE = s
+            images, seconds = [], []
+            for seed in (1, 2):
+                t = time.perf_counter()
+                images.append(wv.render(street_lamp(), "reference", device="cpu", spp=NOISE_SPP, pixel_area=0,
+                                        seed=seed).image.astype(np.float64))
+                seconds.append(time.perf_counter() - t)
+            a, b = images
+            sq = (a - b) ** 2 / 2.0  # one render's variance, per pixel
+            rows.append({"row": label, "share": s, "seconds": float(np.mean(seconds)),
+                         "noise_away": float(np.sqrt(sq[away].mean()) / (0.5 * (a + b))[away].mean()),
+                         "noise": float(np.sqrt(sq.mean()) / (0.5 * (a + b)).mean())})
+            print(f"reference, {label}: noise {rows[-1]['noise_away']:.3f} away from the lamp", flush=True)
+    finally:
+        reference.LAMP_SHARE = share
+    for row in rows:  # at the aimed render's time: noise falls as 1 / sqrt(time)
+        scale = np.sqrt(row["seconds"] / rows[-1]["seconds"])
+        row["noise_away_equal_time"], row["noise_equal_time"] = row["noise_away"] * scale, row["noise"] * scale
+    return rows
 
 
 def _readme(doc: dict, path: Path) -> None:
@@ -111,7 +160,18 @@ def _readme(doc: dict, path: Path) -> None:
     lines += ["", f"**The lamp moving** 0.12 to the right in steps of 0.01 (raymarch, defaults, one Renderer): the "
               f"frame mean's largest step {mv['largest_step'] * 100:.2f}%, its whole change {mv['change'] * 100:+.2f}%; "
               f"the reference's own change over the move {mv['reference_change'] * 100:+.2f}% (its two ends, each "
-              "with its own noise).", ""]
+              "with its own noise).", "",
+              f"**The camera moving** 0.12 sideways in steps of 0.01 (raymarch, defaults, one Renderer): the frame "
+              f"mean's largest step {doc['moving_camera']['largest_step'] * 100:.2f}%, its whole change "
+              f"{doc['moving_camera']['change'] * 100:+.2f}%; the reference's {doc['moving_camera']['reference_change'] * 100:+.2f}%.",
+              "", f"**The reference's noise** ({doc['noise_spp']} spp, two seeds; relative standard error of one render; "
+              f"away from the lamp: more than {CORE} pixels from its brightest pixel):", "",
+              "| continuations | seconds | noise away from the lamp | whole image | away, at the aimed row's time |",
+              "|---|---|---|---|---|"]
+    for r in doc["reference_noise"]:
+        lines.append(f"| {r['row']} | {r['seconds']:.2f} | {r['noise_away']:.3f} | {r['noise']:.3f} | "
+                     f"{r['noise_away_equal_time']:.3f} |")
+    lines += [""]
     path.write_text("\n".join(lines) + "\n")
 
 

@@ -299,6 +299,21 @@ def nanovdb_cloud():
     }
 
 
+def street_lamp(x: float = 0.6, width: int = 320, height: int = 240) -> dict:
+    """A new user's first scene: a lamp at (x, 3.5, 0) just under the arm of a pole, in thin haze
+    20 wide and 6 high over a floor (sigma_t 0.2, albedo 0.9, HG g 0.5), the camera inside the
+    haze (results/street-lamp, tests/test_scattering.py)."""
+    return {"name": "street-lamp", "background": [0.01, 0.012, 0.02],
+            "camera": {"origin": [0.0, 1.5, 8.0], "target": [0.0, 2.0, 0.0], "fov_y": 45.0, "width": width,
+                       "height": height},
+            "lights": [{"type": "point", "position": [x, 3.5, 0.0], "intensity": [12.0, 9.0, 5.0]}],
+            "media": [{"type": "homogeneous", "shape": "box", "center": [0.0, 3.0, 0.0], "size": [20.0, 6.0, 20.0],
+                       "sigma_t": 0.2, "albedo": 0.9, "phase": {"type": "hg", "g": 0.5}}],
+            "surfaces": [{"type": "plane", "center": [0.0, 0.0, 0.0], "size": [20.0, 20.0], "diffuse": 0.4},
+                         {"type": "box", "center": [0.0, 1.8, 0.0], "size": [0.1, 3.6, 0.1], "diffuse": 0.2},
+                         {"type": "box", "center": [0.35, 3.65, 0.0], "size": [0.8, 0.05, 0.1], "diffuse": 0.2}]}
+
+
 # --- seeded random scenes (target_error's coverage: tests/test_target_error.py, bench/target_error_check.py)
 
 def random_scene(seed: int) -> dict:
