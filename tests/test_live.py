@@ -70,3 +70,16 @@ def test_no_display_or_no_pyvista_is_one_line(monkeypatch, capsys):
     assert main(["view", "fog-box", "--screenshot", "x.png"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "pip install 'warpvol[viz]'" in err, err
+
+
+def test_the_title_fits_the_window():
+    """The title lists the stages a frame ran; at 800 pixels one line ran off the right edge
+    ("...surface, mar"). Wrapped, no line is wider than the window at 8 pixels a character (the
+    widest of the size-10 font's), and no word is lost."""
+    from warpvol.viz.live import CHAR_PX, fitted
+
+    title = ("raymarch (t: next, r: reference)  12.3 FPS  ran: medium, surfaces, lights, camera, multiple, "
+             "multiple_view, light_volume, march, surface, march_sky, composite")
+    lines = fitted(title, 800 - 16)
+    assert len(lines) >= 2 and all(len(line) * CHAR_PX <= 800 - 16 for line in lines)
+    assert " ".join(lines).split() == title.split()

@@ -26,6 +26,18 @@ from warpvol.image import tonemap
 DEGREES_PER_PIXEL = 0.5
 
 
+#: The title's font (size 10) in pixels: a character's width, at most, and a line's height.
+CHAR_PX, LINE_PX = 8, 16
+
+
+def fitted(text: str, width_px: int) -> list[str]:
+    """``text`` wrapped at its commas and spaces into lines no wider than ``width_px`` at
+    CHAR_PX a character (one line ran off the window's right edge: "...surface, mar")."""
+    import textwrap
+
+    return textwrap.wrap(text, width=max(20, width_px // CHAR_PX)) or [""]
+
+
 class LiveView:
     """The live loop: ``orbit`` turns the camera, ``frame`` renders (the Renderer re-runs what the
     change feeds), ``fps`` over the last 30 frames, ``switch`` the next technique, ``reference``
@@ -128,7 +140,9 @@ class LiveView:
         def redraw():
             image = self.frame()
             actor.texture = pv.numpy_to_texture(np.ascontiguousarray(tonemap(image)))
-            plotter.add_text(self.title(), position=(8, window_size[1] - 26), font_size=10, color="white", name="title")
+            lines = fitted(self.title(), window_size[0] - 16)
+            plotter.add_text("\n".join(lines), position=(8, window_size[1] - 26 - LINE_PX * (len(lines) - 1)),
+                             font_size=10, color="white", name="title")
             plotter.render()
 
         if frames > 0 or off_screen:
