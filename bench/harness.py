@@ -212,7 +212,7 @@ def digest(obj) -> str:
 #: Bumped when the reference's estimator changes, so cached images from an older one are not
 #: reused: 2 = free flight by superposition, independent forked random streams and Russian
 #: roulette capped at 0.995 (same means, other noise).
-REFERENCE_VERSION = 5  # 3: single scattering includes the sky's light; 4: the floor in relative_rmse's measure; 5: shadow rays at concave edges
+REFERENCE_VERSION = 6  # 6: continuations aimed at the lamps (same means, other noise); 3: single scattering includes the sky's light; 4: the floor in relative_rmse's measure; 5: shadow rays at concave edges
 
 
 def _reference_path(scene, settings: dict) -> Path:
