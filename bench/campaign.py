@@ -48,16 +48,14 @@ PHASES = {"suite": 0.40, "census": 0.05, "paper": 0.30, "quick": 0.17, "referenc
 MIN_STEP_S = 8.0
 #: The test files of a tiny campaign (a dry run).
 TINY_TESTS = ["tests/test_physics.py", "tests/test_lightpass.py", "tests/test_pipeline.py"]
-#: The census: each technique's scene and settings (a frame of tens of milliseconds on a GPU).
-CENSUS = {
-    "raymarch": ("smoke-grid", {}),
-    "light_shafts": ("hazy-sun", {}),
-    "particle_glow": ("dusty-lamp", {}),
-    "rbf_propagation": ("rbf-cornell", {}),
-    "depth_impostors": ("particle-cloud", {}),
-    "illumination_network": ("particle-cloud", {}),
-    "reference": ("fog-box", {"spp": 16}),
-}
+
+
+def census() -> dict:
+    """The census: each technique's own frame (``Technique.CENSUS``: a scene and settings, a frame
+    of tens of milliseconds on a GPU). Read when run: warpvol is imported only then."""
+    import warpvol as wv
+
+    return {name: wv.technique_class(name).CENSUS for name in wv.technique_names()}
 
 
 @dataclass
@@ -272,7 +270,7 @@ def census(device: str, out: Path, tiny: bool) -> dict:
     wp.launch = recorded
     frames = {}
     try:
-        for technique, (scene_name, settings) in CENSUS.items():
+        for technique, (scene_name, settings) in census().items():
             size = ["camera.width=64", "camera.height=48"] if tiny else ["camera.width=640", "camera.height=480"]
             scene = wv.load_scene(scene_name, size)
             r = wv.Renderer(scene, technique=technique, device=device, **settings)

@@ -11,7 +11,7 @@ ratio and the relative RMSE. The moving lamp: the lamp moved 0.12 to the right i
 raymarch at its defaults through one Renderer; the largest step of the frame mean and its whole
 change, beside the reference's own change over the move (its two ends, SPP samples each); the
 moving camera: the same for the camera moved 0.12 sideways. The reference's noise: two seeds at
-NOISE_SPP, with and without the continuations aimed at the lamp (``reference.LAMP_SHARE``), the
+NOISE_SPP, with and without the continuations aimed at the lamp (the reference's ``lamp_share``), the
 relative standard error of one render away from the lamp's core and over the whole image, and
 the same at equal time (noise x sqrt(seconds / the aimed render's seconds)). Writes data.json
 and README.md under --out.
@@ -111,32 +111,26 @@ def main(argv=None) -> None:
 
 
 def reference_noise(truth: np.ndarray) -> list[dict]:
-    """The reference's noise on this scene with the continuations aimed at the lamp (LAMP_SHARE)
-    and without (0): per row, seconds per render and the relative standard error of one render
-    (two seeds) away from the lamp's core and over the whole image."""
-    from warpvol.techniques import reference
-
+    """The reference's noise on this scene with the continuations aimed at the lamp (its
+    ``lamp_share`` at the default) and without (0): per row, seconds per render and the relative
+    standard error of one render (two seeds) away from the lamp's core and over the whole image."""
     lamp = np.unravel_index(np.argmax(truth.mean(axis=2)), truth.shape[:2])
     yy, xx = np.mgrid[:HEIGHT, :WIDTH]
     away = np.maximum(np.abs(yy - lamp[0]), np.abs(xx - lamp[1])) > CORE
-    rows, share = [], reference.LAMP_SHARE
-    try:
-        for label, s in (("phase and cosine directions only", 0.0), (f"aimed at the lamp (share {share})", share)):
-            reference.LAMP_SHARE = s
-            images, seconds = [], []
-            for seed in (1, 2):
-                t = time.perf_counter()
-                images.append(wv.render(street_lamp(), "reference", device="cpu", spp=NOISE_SPP, pixel_area=0,
-                                        seed=seed).image.astype(np.float64))
-                seconds.append(time.perf_counter() - t)
-            a, b = images
-            sq = (a - b) ** 2 / 2.0  # one render's variance, per pixel
-            rows.append({"row": label, "share": s, "seconds": float(np.mean(seconds)),
-                         "noise_away": float(np.sqrt(sq[away].mean()) / (0.5 * (a + b))[away].mean()),
-                         "noise": float(np.sqrt(sq.mean()) / (0.5 * (a + b)).mean())})
-            print(f"reference, {label}: noise {rows[-1]['noise_away']:.3f} away from the lamp", flush=True)
-    finally:
-        reference.LAMP_SHARE = share
+    rows, share = [], wv.technique_class("reference").SETTINGS["lamp_share"].default
+    for label, s in (("phase and cosine directions only", 0.0), (f"aimed at the lamp (share {share})", share)):
+        images, seconds = [], []
+        for seed in (1, 2):
+            t = time.perf_counter()
+            images.append(wv.render(street_lamp(), "reference", device="cpu", spp=NOISE_SPP, pixel_area=0, seed=seed,
+                                    lamp_share=s).image.astype(np.float64))
+            seconds.append(time.perf_counter() - t)
+        a, b = images
+        sq = (a - b) ** 2 / 2.0  # one render's variance, per pixel
+        rows.append({"row": label, "share": s, "seconds": float(np.mean(seconds)),
+                     "noise_away": float(np.sqrt(sq[away].mean()) / (0.5 * (a + b))[away].mean()),
+                     "noise": float(np.sqrt(sq.mean()) / (0.5 * (a + b)).mean())})
+        print(f"reference, {label}: noise {rows[-1]['noise_away']:.3f} away from the lamp", flush=True)
     for row in rows:  # at the aimed render's time: noise falls as 1 / sqrt(time)
         scale = np.sqrt(row["seconds"] / rows[-1]["seconds"])
         row["noise_away_equal_time"], row["noise_equal_time"] = row["noise_away"] * scale, row["noise"] * scale

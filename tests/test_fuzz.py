@@ -39,6 +39,7 @@ from hypothesis import strategies as st  # noqa: E402
 import warpvol as wv  # noqa: E402
 from warpvol.cli import main  # noqa: E402
 from warpvol.pipeline import SettingsError  # noqa: E402
+from warpvol.techniques import TECHNIQUES  # noqa: E402
 
 EXAMPLES = int(os.environ.get("WARPVOL_FUZZ_EXAMPLES", "40"))
 FUZZ = settings(max_examples=EXAMPLES, derandomize=True, deadline=timedelta(seconds=120),
@@ -46,15 +47,7 @@ FUZZ = settings(max_examples=EXAMPLES, derandomize=True, deadline=timedelta(seco
                 database=None)  # the `device` fixture is a name, the same for every example
 
 #: Each technique at settings that keep a render to milliseconds.
-TINY = {
-    "reference": {"spp": 2},
-    "raymarch": {"steps": 12, "shadow_steps": 6},
-    "light_shafts": {"steps": 8, "block": 2, "shadow_map_res": 16, "shadow_steps": 6},
-    "rbf_propagation": {"grid": 6, "steps": 12},
-    "illumination_network": {"directions": 8, "iterations": 3, "light_samples": 1},
-    "depth_impostors": {"impostor_res": 4, "slices": 2, "light_samples": 2},
-    "particle_glow": {"steps": 12, "shadow_map_res": 16, "shadow_steps": 6, "specular": 0.3},
-}
+TINY = {name: cls.TINY for name, cls in TECHNIQUES.items()}  # each technique's own (``Technique.TINY``)
 #: And each light-pass representation (media/lightpass.py) at a few points a sphere.
 LIGHT_PASSES = [{"light_pass": k, "light_samples": 3, "light_slices": 3, "light_terms": 2} for k in (0, 1, 2)]
 

@@ -12,6 +12,7 @@ import pytest
 import warpvol as wv
 from warpvol.pipeline import Pipeline, Stage, Technique
 from warpvol.scene.procedural import smoke_grid
+from warpvol.techniques import TECHNIQUES
 
 SMALL = dict(shadow_grid=8, shadow_steps=8, steps=16)
 
@@ -187,10 +188,8 @@ def test_a_camera_table_changes_only_its_keys(device):
     np.testing.assert_array_equal(frame.image, wv.render(moved, technique="raymarch", device=device, **SMALL).image)
 
 
-AUDITED = {"raymarch": ("fog-box", "smoke-grid", "hazy-sun"), "light_shafts": ("fog-box", "hazy-sun"),
-           "particle_glow": ("dusty-lamp", "smoke-grid"), "rbf_propagation": ("rbf-single", "fog-box"),
-           "illumination_network": ("particle-cloud",), "depth_impostors": ("particle-cloud",),
-           "reference": ("fog-box",)}
+#: Each technique's own examples (``Technique.EXAMPLES``).
+AUDITED = {name: cls.EXAMPLES for name, cls in TECHNIQUES.items()}
 
 
 def _audited(technique: str, name: str):

@@ -110,8 +110,10 @@ def pages(root: Path) -> dict[Path, str]:
     out = {root / "docs" / "scene-format.md": scene_doc.page()}
     for name in technique_names():
         path = root / "docs" / "techniques" / f"{name}.md"
-        if path.exists():
-            out[path] = _fill(path.read_text(), "settings", technique_block(name))
+        if not path.exists():
+            raise ValueError(f"{path.relative_to(root)}: missing: every technique has its page (its model, what it "
+                             f"leaves out, and a block {BEGIN.format('settings')} ... {END} for its settings)")
+        out[path] = _fill(path.read_text(), "settings", technique_block(name))
     readme = root / "README.md"
     out[readme] = _fill(readme.read_text(), "target-error", target_error_table())
     return out

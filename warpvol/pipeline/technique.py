@@ -52,6 +52,15 @@ class Technique:
     NAME = ""
     SETTINGS: dict[str, Setting] = {}
 
+    # The technique's own facts, which the suite, the census and the campaign read from
+    # ``TECHNIQUES`` (tests/test_registry.py fails where one is missing):
+    #: built-in scenes it is audited on (every stage run twice, tests/test_pipeline.py)
+    EXAMPLES: tuple[str, ...] = ()
+    #: settings for a frame of a few milliseconds on a 16 x 12 scene (tests/test_fuzz.py)
+    TINY: dict = {}
+    #: the census frame (bench/campaign.py): a built-in scene and settings, tens of ms on a GPU
+    CENSUS: tuple[str, dict] = ("", {})
+
     def __init__(self, scene, device: str, settings: dict, progress: bool = False):
         self.scene = scene
         self.device = device

@@ -283,6 +283,9 @@ class ParticleGlow(Technique):
     """the glowy-light paper: a march with a nearby particle's light at every step (module docstring)."""
 
     NAME = NAME
+    EXAMPLES = ("dusty-lamp", "smoke-grid")
+    TINY = {"steps": 12, "shadow_map_res": 16, "shadow_steps": 6, "specular": 0.3}
+    CENSUS = ("dusty-lamp", {})
     SETTINGS = SETTINGS
     QUALITY = Quality(knob="steps", start=8, top=8192, order=2, tied={"shadow_steps": 0.25},
                       biases=(Bias("shadow_map_res", factor=4, order=1), *MS_BIASES, EXTINCTION_BIAS,

@@ -229,6 +229,9 @@ class Raymarch(Technique):
     """Fixed-step single-scattering ray march (see the module docstring)."""
 
     NAME = NAME
+    EXAMPLES = ("fog-box", "smoke-grid", "hazy-sun")
+    TINY = {"steps": 12, "shadow_steps": 6}
+    CENSUS = ("smoke-grid", {})
     SETTINGS = SETTINGS
     QUALITY = Quality(knob="steps", start=8, top=1024, order=2, tied={"shadow_steps": 1},
                       biases=(Bias("sky_samples", factor=4, order=1, when="sky"), LIGHT_VOLUME_BIAS,

@@ -128,6 +128,9 @@ class DepthImpostors(Technique):
     """Umenhoffer & Szirmay-Kalos 2005: depth impostors of particle blocks, light slices, objects in clouds."""
 
     NAME = NAME
+    EXAMPLES = ("particle-cloud",)
+    TINY = {"impostor_res": 4, "slices": 2, "light_samples": 2}
+    CENSUS = ("particle-cloud", {})
     SETTINGS = SETTINGS
     QUALITY = Quality(knob="slices", start=2, top=512, order=1, biases=(
         Bias("light_pass", exact=0), Bias("impostor_detail", factor=4, order=1),

@@ -142,6 +142,9 @@ class IlluminationNetwork(Technique):
     """Visibility network, emission, iteration and splatting (see the module docstring)."""
 
     NAME = NAME
+    EXAMPLES = ("particle-cloud",)
+    TINY = {"directions": 8, "iterations": 3, "light_samples": 1}
+    CENSUS = ("particle-cloud", {})
     SETTINGS = SETTINGS
     # directions: the converged answer's quadrature, order 1 (measured); each level averages two turned sets
     QUALITY = Quality(knob="directions", start=32, top=2048, order=1, biases=(Bias("light_pass", exact=0),

@@ -514,6 +514,9 @@ class LightShafts(ShaftStages):
     """Shadow-mapped single scattering with interleaved sampling (see the module docstring)."""
 
     NAME = NAME
+    EXAMPLES = ("fog-box", "hazy-sun")
+    TINY = {"steps": 8, "block": 2, "shadow_map_res": 16, "shadow_steps": 6}
+    CENSUS = ("hazy-sun", {})
     SETTINGS = SETTINGS
     QUALITY = Quality(knob="steps", start=16, top=4096, order=1, tied={"shadow_steps": 0.5},
                       biases=(Bias("block", exact=1), Bias("shadow_map_res", factor=4, order=1), *MS_BIASES,

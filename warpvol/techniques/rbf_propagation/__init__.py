@@ -455,6 +455,9 @@ class RBFPropagation(Technique):
     """Extinction volume, opacity propagation volume, ray march (see the module docstring)."""
 
     NAME = NAME
+    EXAMPLES = ("rbf-single", "fog-box")
+    TINY = {"grid": 6, "steps": 12}
+    CENSUS = ("rbf-cornell", {})
     SETTINGS = SETTINGS
     QUALITY = Quality(knob="grid", start=8, top=256, order=1, tied={"steps": 4}, biases=MS_BIASES)
     LEAVES_OUT = ()
