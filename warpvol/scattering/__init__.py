@@ -295,12 +295,13 @@ class MultipleScattering:
         self._m = m
 
     def _cell_at(self, lat: Lattice, p: np.ndarray) -> float:
-        """The lattice's widest cell around p."""
+        """The lattice's widest cell around p (``lattice.cell_size`` on the host: p held to the
+        lattice's bounds, as there)."""
         sp = lat.spacing
         lo, hi = np.array(lat.lo, np.float64), np.array(lat.hi, np.float64)
         s, alpha, c = (np.array(v, np.float64) for v in (sp.s, sp.alpha, sp.c))
         even = (hi - lo) / (lat.n - 1)
-        graded = s * alpha * np.sqrt(1.0 + ((p - c) / s) ** 2)
+        graded = s * alpha * np.sqrt(1.0 + ((np.clip(p, lo, hi) - c) / s) ** 2)
         return float(np.max(np.where(alpha > 0.0, graded, even)))
 
     def _view(self):
