@@ -12,13 +12,13 @@ from ..geometry.mesh import Surfaces, surface_hit
 from ..media.grid import lattice_at_vec3, lattice_cell, trilinear_weights
 from ..media.volume import Media, coefficients_at, medium_sigma_t
 from ..physics.brdf import Material
-from ..physics.constants import INF, PI
+from ..physics.constants import INF, INV_PI, PI
 from ..physics.lights import DIRECTIONAL, Emitter, ball_mean_inverse_square, light_incident
 from ..physics.phase import phase_eval
 from ..physics.sampling import orthonormal_basis
 from ..physics.transmittance import step_integral_rgb, transmittance_rgb
 from ..shading import light_transmittance, reflected, sky_along_normal, surface_direct
-from .near import NearField, far_part, near_in_scatter
+from .near import NearField, far_part, near_in_scatter, near_on_surface
 from .lattice import (LATTICE_PAD, Lattice, cell_size, cell_step, corner_weight, hat_volume, hat_weight, inside_margin,
                       lattice_coords, lattice_sample, node_index, node_position, support_corner)
 
@@ -168,7 +168,11 @@ def scattered_on_surface(sl: ScatteredLight, s: Surfaces, mat: Material, p: wp.v
     if sl.lat.n == 0:
         return wp.vec3(0.0)
     if inside_margin(sl.lat.lo, sl.lat.hi, wp.max(cell_size(sl.lat, p)), p):
-        return reflected_field(sl.field, sl.lat, mat, p, n, wo)
+        # the windowed lights' first scattering from their tables at p (Lambertian), the rest of
+        # the field from the nodes: interpolated, a light's L1 (1/r toward it) read twice its light
+        # a third of a cell away
+        near = wp.cw_mul(mat.diffuse, near_on_surface(sl.near, p, n)) * INV_PI
+        return reflected_field(sl.view_field, sl.lat, mat, p, n, wo) + near
     return reflected_from_outside(sl.field, sl.lat, mat, p, n, wo, sl.sky)
 
 

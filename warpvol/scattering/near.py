@@ -69,6 +69,7 @@ class NearField:
     r_max: wp.array(dtype=float)  # the tables' last radius
     sigma_t: wp.array(dtype=wp.vec3)  # the medium's at the light (the tables' fall-off beyond r_max)
     view: wp.array(dtype=wp.vec3)  # G, light-major, NEAR_R x NEAR_MU
+    surface: wp.array(dtype=wp.vec3)  # E, the irradiance on a surface, light-major, NEAR_R x NEAR_MU
 
 
 @wp.func
@@ -165,9 +166,29 @@ def azimuth_phase(offset: int, m: Media, medium: int, out: wp.array(dtype=float)
 
 
 @wp.kernel
+def azimuth_cosine(offset: int, out: wp.array(dtype=float)):
+    """C(nu_j, mu_k) sin(theta_j) dtheta: ``azimuth_phase`` with the clamped cosine max(0, .) for
+    the phase function, the weight of L1(., nu_j) in the irradiance E(., mu_k) on a surface whose
+    normal makes cos mu with the direction to the light (L1 travels at cos nu to the direction
+    from the light, so it arrives at cos(nu mu + ...) to the normal)."""
+    tid = wp.tid() + offset
+    j = tid / NEAR_MU
+    k = tid % NEAR_MU
+    th = theta_of(j)
+    nu = wp.cos(th)
+    mu = -1.0 + 2.0 * float(k) / float(NEAR_MU - 1)
+    a = wp.sin(th) * wp.sqrt(wp.max(1.0 - mu * mu, 0.0))
+    acc = float(0.0)
+    for f in range(NEAR_PHI):
+        phi = (float(f) + 0.5) * 2.0 * PI / float(NEAR_PHI)
+        acc += wp.max(nu * mu + a * wp.cos(phi), 0.0)
+    out[tid] = acc * (2.0 * PI / float(NEAR_PHI)) * wp.sin(th) * (PI / float(NEAR_NU))
+
+
+@wp.kernel
 def near_view(offset: int, L1: wp.array(dtype=wp.vec3), K: wp.array(dtype=float), base: int,
               out: wp.array(dtype=wp.vec3)):
-    """G(r_i, mu_k) = sum_j L1(r_i, nu_j) K_jk."""
+    """G(r_i, mu_k) = sum_j L1(r_i, nu_j) K_jk (with ``azimuth_cosine`` for K: the irradiance E)."""
     tid = wp.tid() + offset
     i = tid / NEAR_MU
     k = tid % NEAR_MU
@@ -222,6 +243,25 @@ def near_in_scatter(nf: NearField, eye: wp.vec3, sigma_s: wp.vec3, x: wp.vec3) -
 
 
 @wp.func
+def near_on_surface(nf: NearField, p: wp.vec3, n: wp.vec3) -> wp.vec3:
+    """sum_l E_l(r, mu): the irradiance at p, on a surface of normal n, of the windowed lights'
+    once-scattered light, mu the cosine between n and the direction to the light. Read from the
+    tables at p itself, not interpolated from the lattice's nodes, where a light's L1 grows like
+    1/r toward it (a ceiling a third of a cell above a lamp read twice its light)."""
+    out = wp.vec3(0.0)
+    for l in range(nf.count):
+        to = nf.position[l] - p
+        r = wp.length(to)
+        mu = float(1.0)
+        if r > 0.0:
+            mu = wp.dot(to / r, n)
+        v = (mu + 1.0) * 0.5 * float(NEAR_MU - 1)
+        e = table_at(nf.surface, l * NEAR_R * NEAR_MU, NEAR_MU, radius_index(nf.rho[l], nf.r_max[l], r), v)
+        out += wp.cw_mul(e, beyond(r, nf.r_max[l], nf.sigma_t[l]))
+    return out
+
+
+@wp.func
 def near_radiance_at(L1: wp.array(dtype=wp.vec3), position: wp.vec3, rho: float, r_max: float, sigma_t: wp.vec3,
                      y: wp.vec3, w: wp.vec3) -> wp.vec3:
     """L1 of one windowed light at y toward w, bilinear in (log r, theta)."""
@@ -273,7 +313,7 @@ def near_at_nodes(offset: int, lat: Lattice, position: wp.vec3, rho: float, r_ma
 def empty(device) -> NearField:
     nf = NearField()
     nf.count = 0
-    nf.position = nf.sigma_t = nf.view = wp.zeros(1, dtype=wp.vec3, device=device)
+    nf.position = nf.sigma_t = nf.view = nf.surface = wp.zeros(1, dtype=wp.vec3, device=device)
     nf.rho = nf.r_max = wp.zeros(1, dtype=float, device=device)
     return nf
 
@@ -311,10 +351,15 @@ class NearLights:
         nf = NearField()
         nf.count = len(self.at)
         nf.view = wp.empty(nf.count * NEAR_R * NEAR_MU, dtype=wp.vec3, device=d)
+        nf.surface = wp.empty(nf.count * NEAR_R * NEAR_MU, dtype=wp.vec3, device=d)
         K = wp.empty(NEAR_NU * NEAR_MU, dtype=float, device=d)
+        C = wp.empty(NEAR_NU * NEAR_MU, dtype=float, device=d)
+        dev.launch(azimuth_cosine, NEAR_NU * NEAR_MU, [C], d, work=float(NEAR_PHI))
         for k, (medium, *_) in enumerate(self.at):
             dev.launch(azimuth_phase, NEAR_NU * NEAR_MU, [media, medium, K], d, work=float(NEAR_PHI))
             dev.launch(near_view, NEAR_R * NEAR_MU, [self.L1[k], K, k * NEAR_R * NEAR_MU, nf.view], d,
+                       work=float(NEAR_NU))
+            dev.launch(near_view, NEAR_R * NEAR_MU, [self.L1[k], C, k * NEAR_R * NEAR_MU, nf.surface], d,
                        work=float(NEAR_NU))
         nf.position = wp.array([a[1] for a in self.at], dtype=wp.vec3, device=d)
         nf.rho = wp.array([a[2] for a in self.at], dtype=float, device=d)
