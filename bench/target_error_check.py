@@ -18,7 +18,6 @@ import numpy as np
 import warp as wp
 
 import warpvol as wv
-from warpvol.scattering import BIASES as MS_BIASES
 from warpvol.scene.procedural import brightened, random_cloud, random_scene
 
 from .fingerprint import probe
@@ -28,7 +27,7 @@ from .harness import device_name, git_commit
 # discretisation setting at its limit, what the truth is)
 #: The multiple-scattering lattice in a marcher's truth: at the top target_error takes it to (its cost
 #: grows as n^4 D), where the frame may have moved it; its bias beyond is the frame's own estimate's part.
-LATTICE = {b.setting: b.top for b in MS_BIASES}
+LATTICE = {b.setting: b.top for b in wv.technique_class("raymarch").QUALITY.biases if b.when == "multiple"}
 CASES = {
     "raymarch": (0.01, "random_scene", [{"steps": 1024, "shadow_steps": 1024, "sky_samples": 1024, **LATTICE}],
                  "1024 steps and shadow steps, 1024 sky directions, the lattice at its top"),

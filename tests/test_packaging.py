@@ -47,7 +47,7 @@ def test_bench_and_viz_read_techniques_through_their_public_api():
     root = Path(__file__).resolve().parent.parent
     allowed = {"NAME", "SETTINGS", "QUALITY", "LEAVES_OUT", "device", "settings", "scene"}
     hits = []
-    for path in sorted([*root.joinpath("bench").glob("*.py"), *root.joinpath("viz").glob("*.py")]):
+    for path in sorted([*root.joinpath("bench").rglob("*.py"), *root.joinpath("viz").rglob("*.py")]):
         tree = ast.parse(path.read_text())
         holders = {t.id for node in ast.walk(tree) if isinstance(node, ast.Assign)
                    and isinstance(node.value, ast.Attribute) and node.value.attr == "technique"

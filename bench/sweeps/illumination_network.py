@@ -209,7 +209,7 @@ def anisotropy(params: dict, device: str, quick: bool) -> dict:
     r = wv.Renderer(scene, technique="illumination_network", device=device, iterations=2000, tolerance=1e-5,
                     directions=params["directions"], phase_norm=params["phase_norm"], window=params.get("window", 0))
     row = time_frames(r, repeats=1 if quick else 2, invalidate=("lights",))
-    row["linked"] = float((r.technique.V.numpy() >= 0).mean())  # (particle, direction) pairs with an upstream particle
+    row["linked"] = r.diagnostics()["linked"]  # (particle, direction) pairs with an upstream particle
     ref = score(row, scene, device, 16 if quick else 128, max_bounces=-1)
     row["mean_ratio"] = float(row["frame"].image.mean() / ref.mean())
     row["scene"] = (f"{len(scene.media[0].positions)} particles, HG g = {params['g']}, {w}x{w}"

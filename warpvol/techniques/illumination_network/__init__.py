@@ -421,8 +421,10 @@ class IlluminationNetwork(Technique):
         took (the convergence history's length); ``direct``: the direct light per particle
         (N x lights x 3); ``light_texels``: the light pass's texels per face side; ``light_refined``: how often its
         map was refined to meet ``light_tolerance``; ``light_error``: its last map's measured
-        error (None: not checked); ``light_fell_back``: whether it fell back to exact transmittance."""
+        error (None: not checked); ``light_fell_back``: whether it fell back to exact transmittance;
+        ``linked``: the share of (particle, direction) pairs with an upstream particle."""
         return {"window": self.M, "iterations": len(self.history), "direct": self.direct.numpy(),
+                "linked": float((self.V.numpy() >= 0).mean()) if getattr(self, "V", None) is not None else 0.0,
                 "light_texels": self.light_pass.M if self.light_pass is not None else 0,
                 "light_refined": len(self.light_pass.refined) if self.light_pass is not None else 0,
                 "light_error": self.light_pass.error if self.light_pass is not None else None,
