@@ -148,9 +148,13 @@ def near_radiance(offset: int, m: Media, light: wp.vec3, intensity: wp.vec3, med
 
 
 @wp.kernel
-def azimuth_phase(offset: int, m: Media, medium: int, out: wp.array(dtype=float)):
-    """K(nu_j, mu_k) sin(theta_j) dtheta = int_0^2pi p(nu mu + sqrt(1 - nu^2) sqrt(1 - mu^2)
-    cos phi) dphi sin(theta_j) pi / NEAR_NU: the weight of L1(., nu_j) in G(., mu_k)."""
+def azimuth_kernel(offset: int, m: Media, medium: int, cosine: int, out: wp.array(dtype=float)):
+    """K(nu_j, mu_k) sin(theta_j) dtheta = int_0^2pi k(nu mu + sqrt(1 - nu^2) sqrt(1 - mu^2)
+    cos phi) dphi sin(theta_j) pi / NEAR_NU: the weight of L1(., nu_j) in G(., mu_k), k the
+    medium's phase function; with ``cosine``, k the clamped cosine max(0, .), the weight in the
+    irradiance E(., mu_k) on a surface whose normal makes cos mu with the direction to the light
+    (L1 travels at cos nu to the direction from the light, so it arrives at that cosine to the
+    normal)."""
     tid = wp.tid() + offset
     j = tid / NEAR_MU
     k = tid % NEAR_MU
@@ -161,34 +165,18 @@ def azimuth_phase(offset: int, m: Media, medium: int, out: wp.array(dtype=float)
     acc = float(0.0)
     for f in range(NEAR_PHI):
         phi = (float(f) + 0.5) * 2.0 * PI / float(NEAR_PHI)
-        acc += phase_eval(m.phase[medium], m.phase_table, wp.clamp(nu * mu + a * wp.cos(phi), -1.0, 1.0))
-    out[tid] = acc * (2.0 * PI / float(NEAR_PHI)) * wp.sin(th) * (PI / float(NEAR_NU))
-
-
-@wp.kernel
-def azimuth_cosine(offset: int, out: wp.array(dtype=float)):
-    """C(nu_j, mu_k) sin(theta_j) dtheta: ``azimuth_phase`` with the clamped cosine max(0, .) for
-    the phase function, the weight of L1(., nu_j) in the irradiance E(., mu_k) on a surface whose
-    normal makes cos mu with the direction to the light (L1 travels at cos nu to the direction
-    from the light, so it arrives at cos(nu mu + ...) to the normal)."""
-    tid = wp.tid() + offset
-    j = tid / NEAR_MU
-    k = tid % NEAR_MU
-    th = theta_of(j)
-    nu = wp.cos(th)
-    mu = -1.0 + 2.0 * float(k) / float(NEAR_MU - 1)
-    a = wp.sin(th) * wp.sqrt(wp.max(1.0 - mu * mu, 0.0))
-    acc = float(0.0)
-    for f in range(NEAR_PHI):
-        phi = (float(f) + 0.5) * 2.0 * PI / float(NEAR_PHI)
-        acc += wp.max(nu * mu + a * wp.cos(phi), 0.0)
+        c = wp.clamp(nu * mu + a * wp.cos(phi), -1.0, 1.0)
+        if cosine != 0:
+            acc += wp.max(c, 0.0)
+        else:
+            acc += phase_eval(m.phase[medium], m.phase_table, c)
     out[tid] = acc * (2.0 * PI / float(NEAR_PHI)) * wp.sin(th) * (PI / float(NEAR_NU))
 
 
 @wp.kernel
 def near_view(offset: int, L1: wp.array(dtype=wp.vec3), K: wp.array(dtype=float), base: int,
               out: wp.array(dtype=wp.vec3)):
-    """G(r_i, mu_k) = sum_j L1(r_i, nu_j) K_jk (with ``azimuth_cosine`` for K: the irradiance E)."""
+    """G(r_i, mu_k) = sum_j L1(r_i, nu_j) K_jk (``azimuth_kernel``; with its cosine: the irradiance E)."""
     tid = wp.tid() + offset
     i = tid / NEAR_MU
     k = tid % NEAR_MU
@@ -245,7 +233,8 @@ def near_in_scatter(nf: NearField, eye: wp.vec3, sigma_s: wp.vec3, x: wp.vec3) -
 @wp.func
 def near_on_surface(nf: NearField, p: wp.vec3, n: wp.vec3) -> wp.vec3:
     """sum_l E_l(r, mu): the irradiance at p, on a surface of normal n, of the windowed lights'
-    once-scattered light, mu the cosine between n and the direction to the light. Read from the
+    once-scattered light, mu the cosine between n and the direction to the light (``azimuth_kernel``
+    with its cosine). Read from the
     tables at p itself, not interpolated from the lattice's nodes, where a light's L1 grows like
     1/r toward it (a ceiling a third of a cell above a lamp read twice its light)."""
     out = wp.vec3(0.0)
@@ -354,9 +343,9 @@ class NearLights:
         nf.surface = wp.empty(nf.count * NEAR_R * NEAR_MU, dtype=wp.vec3, device=d)
         K = wp.empty(NEAR_NU * NEAR_MU, dtype=float, device=d)
         C = wp.empty(NEAR_NU * NEAR_MU, dtype=float, device=d)
-        dev.launch(azimuth_cosine, NEAR_NU * NEAR_MU, [C], d, work=float(NEAR_PHI))
+        dev.launch(azimuth_kernel, NEAR_NU * NEAR_MU, [media, 0, 1, C], d, work=float(NEAR_PHI))
         for k, (medium, *_) in enumerate(self.at):
-            dev.launch(azimuth_phase, NEAR_NU * NEAR_MU, [media, medium, K], d, work=float(NEAR_PHI))
+            dev.launch(azimuth_kernel, NEAR_NU * NEAR_MU, [media, medium, 0, K], d, work=float(NEAR_PHI))
             dev.launch(near_view, NEAR_R * NEAR_MU, [self.L1[k], K, k * NEAR_R * NEAR_MU, nf.view], d,
                        work=float(NEAR_NU))
             dev.launch(near_view, NEAR_R * NEAR_MU, [self.L1[k], C, k * NEAR_R * NEAR_MU, nf.surface], d,

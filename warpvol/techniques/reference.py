@@ -326,6 +326,24 @@ def lamps_pdf(lights: wp.array(dtype=Emitter), x: wp.vec3, mu: float, total: flo
 
 
 @wp.func
+def aim_at_lamps(lights: wp.array(dtype=Emitter), x: wp.vec3, mu: float, events: int, share: float, wi: wp.vec3,
+                 rng: wp.uint32):
+    """The continuation from x with a ``share`` of it aimed at the lamps (``toward_lamp``), where
+    one is near (``lamps_total`` > 0; ``share`` > 0): (the direction, ``wi`` as drawn by the
+    phase function or the cosine lobe or one aimed; the lamps' part of the mixture's density
+    there, share x ``lamps_pdf``; whether the mixture applies; the generator's state after)."""
+    total = float(0.0)
+    if share > 0.0:
+        total = lamps_total(lights, x, mu, events)
+    if total <= 0.0:
+        return wi, 0.0, False, rng
+    w = wi
+    if wp.randf(rng) < share:
+        w = toward_lamp(lights, x, mu, total, wp.rand_init(wp.randi(rng), STREAM))
+    return w, share * lamps_pdf(lights, x, mu, total, w), True, rng
+
+
+@wp.func
 def sky_after_last(m: Media, s: Surfaces, o: wp.vec3, d: wp.vec3, background: wp.vec3, c: int,
                    rng: wp.uint32) -> wp.vec3:
     """After a path's last scattering event (``max_bounces``), its continuation d still counts
@@ -418,13 +436,10 @@ def trace_path(cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Em
             u1 = wp.randf(rng)
             u2 = wp.randf(rng)
             wi, weight, pdf = phase_sample(m.phase[i], m.phase_table, d, u1, u2)
-            lamps = lamps_total(lights, x, mu, events) * wp.where(st.lamp_share > 0.0, 1.0, 0.0)
-            if lamps > 0.0:  # one-sample MIS with directions aimed at the lamps (lamp_share)
-                if wp.randf(rng) < st.lamp_share:
-                    wi = toward_lamp(lights, x, mu, lamps, wp.rand_init(wp.randi(rng), STREAM))
+            wi, lamp_pdf, aimed, rng = aim_at_lamps(lights, x, mu, events, st.lamp_share, wi, rng)
+            if aimed:  # one-sample MIS with directions aimed at the lamps (lamp_share)
                 c_wi = wp.dot(d, wi)
-                mix = (1.0 - st.lamp_share) * phase_sample_pdf(m.phase[i], m.phase_table, c_wi) + \
-                    st.lamp_share * lamps_pdf(lights, x, mu, lamps, wi)
+                mix = (1.0 - st.lamp_share) * phase_sample_pdf(m.phase[i], m.phase_table, c_wi) + lamp_pdf
                 weight = phase_eval(m.phase[i], m.phase_table, c_wi) / mix
             beta = wp.cw_mul(beta, m.albedo[i]) * weight
             o = x
@@ -443,12 +458,10 @@ def trace_path(cam: RasterView, m: Media, s: Surfaces, lights: wp.array(dtype=Em
             u2 = wp.randf(rng)
             wi = cosine_direction(nf, u1, u2)
             bounce = PI
-            lamps = lamps_total(lights, p, mu, events) * wp.where(st.lamp_share > 0.0, 1.0, 0.0)
-            if lamps > 0.0:  # one-sample MIS with directions aimed at the lamps (lamp_share)
-                if wp.randf(rng) < st.lamp_share:
-                    wi = toward_lamp(lights, p, mu, lamps, wp.rand_init(wp.randi(rng), STREAM))
+            wi, lamp_pdf, aimed, rng = aim_at_lamps(lights, p, mu, events, st.lamp_share, wi, rng)
+            if aimed:  # one-sample MIS with directions aimed at the lamps (lamp_share)
                 cos_n = wp.max(wp.dot(nf, wi), 0.0)
-                mix = (1.0 - st.lamp_share) * cos_n / PI + st.lamp_share * lamps_pdf(lights, p, mu, lamps, wi)
+                mix = (1.0 - st.lamp_share) * cos_n / PI + lamp_pdf
                 bounce = wp.where(cos_n > 0.0, cos_n / mix, 0.0)  # below the surface: the path ends dark
             beta = wp.cw_mul(beta, brdf_eval(mat, nf, -d, wi)) * bounce
             if bounce <= 0.0:
