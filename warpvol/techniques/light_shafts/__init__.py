@@ -404,6 +404,10 @@ def march_shafts(offset: int, cam: RasterView, m: Media, sl: ShadowedLights, seg
             acc = homogeneous_samples(m, sl, ms, o, d, ta, tb, dl, k0, stride, u, st)
         else:
             acc, tau = heterogeneous_samples(m, sl, ms, o, d, ta, tb, dl, k0, stride, u, st)
+            if st.has_depth == 0:  # the background through the optical depth this march summed
+                tau += homogeneous_optical_depth(m, o, d, ta, tb)
+                out.surface[tid] = wp.cw_mul(background, transmittance_rgb(tau))
+                background_done = True
         if st.edges == 1 and stride > 1:  # the classes of the neighbours at another depth: marched here
             x0 = window_start(px, cam.width, st.block)
             y0 = window_start(py, cam.height, st.block)
@@ -417,10 +421,6 @@ def march_shafts(offset: int, cam: RasterView, m: Media, sl: ShadowedLights, seg
                         else:
                             missing, tau_k = heterogeneous_samples(m, sl, ms, o, d, ta, tb, dl, k, stride, u, st)
                             own += missing
-            if st.has_depth == 0:  # the background through the optical depth this march summed
-                tau += homogeneous_optical_depth(m, o, d, ta, tb)
-                out.surface[tid] = wp.cw_mul(background, transmittance_rgb(tau))
-                background_done = True
     if st.has_depth == 0 and not background_done:
         out.surface[tid] = wp.cw_mul(background, transmittance_rgb(marched_optical_depth(m, o, d, 0.0, b, st.steps)))
     out.partial[tid] = acc
