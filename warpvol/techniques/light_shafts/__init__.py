@@ -302,47 +302,6 @@ def add_sample(acc: wp.vec3, m: Media, sl: ShadowedLights, ms: ScatteredLight, o
 
 
 @wp.func
-def homogeneous_samples(m: Media, sl: ShadowedLights, ms: ScatteredLight, o: wp.vec3, d: wp.vec3, ta: float,
-                        tb: float, dl: float, k0: int, stride: int, u: float, st: ShaftSettings) -> wp.vec3:
-    """The sum of a pixel's samples k = k0, k0 + stride, ... (M^2 when interleaved; cells of
-    length ``dl`` from ``ta``, cut at ``tb``; a sample at ``u`` of its cell) in closed-form media."""
-    acc = wp.vec3(0.0)
-    for k in range(k0, st.steps, stride):
-        c0 = ta + float(k) * dl  # this sample's cell, cut at the surface
-        if c0 >= tb:
-            break
-        w = wp.min(1.0, (tb - c0) / dl) * dl
-        lk = c0 + u * w
-        x = o + lk * d
-        tau_v = homogeneous_optical_depth(m, o, d, 0.0, lk)
-        acc = add_sample(acc, m, sl, ms, o, d, c0, w, x, tau_v, st)
-    return acc
-
-
-@wp.func
-def heterogeneous_samples(m: Media, sl: ShadowedLights, ms: ScatteredLight, o: wp.vec3, d: wp.vec3, ta: float,
-                          tb: float, dl: float, k0: int, stride: int, u: float, st: ShaftSettings):
-    """``homogeneous_samples`` where a medium is a grid: the optical depth from the camera is
-    accumulated at every one of the N steps, the lights are summed at this pixel's samples only.
-    Returns (the sum, the optical depth from the camera to ``tb``)."""
-    acc = wp.vec3(0.0)
-    tau = homogeneous_optical_depth(m, o, d, 0.0, ta)
-    for k in range(st.steps):
-        c0 = ta + float(k) * dl
-        if c0 >= tb:
-            break
-        w = wp.min(1.0, (tb - c0) / dl) * dl
-        lk = c0 + u * w
-        x = o + lk * d
-        sig = sigma_t_at(m, x, True)
-        if k % stride == k0:
-            tau_v = tau + homogeneous_optical_depth(m, o, d, ta, lk) + sig * (u * w)
-            acc = add_sample(acc, m, sl, ms, o, d, c0, w, x, tau_v, st)
-        tau += sig * w
-    return acc, tau
-
-
-@wp.func
 def same_depth(tp: float, tq: float, tolerance: float) -> bool:
     """Two pixels' visible surfaces within ``tolerance`` (relative) of each other, or both none."""
     if tp < INF and tq < INF:
@@ -354,6 +313,112 @@ def same_depth(tp: float, tq: float, tolerance: float) -> bool:
 def window_start(p: int, size: int, block: int) -> int:
     """The first pixel of the M-wide window around p, shifted inside the image at its borders."""
     return wp.clamp(p - block / 2, 0, wp.max(size - block, 0))
+
+
+@wp.struct
+class EdgeWindow:
+    """A pixel's M x M window for the depth-aware block sum (``block_sum_depth_aware``): its first
+    pixel (x0, y0), the image's width, the visible surfaces' distances and the pixel's own (tp);
+    ``on`` = 1 where a neighbour in it lies at another depth, whose residue class the pixel then
+    marches itself."""
+    t_hit: wp.array(dtype=float)
+    tp: float
+    x0: int
+    y0: int
+    width: int
+    on: int
+
+
+@wp.func
+def edge_window(t_hit: wp.array(dtype=float), px: int, py: int, width: int, height: int, block: int,
+                tolerance: float, edges: int) -> EdgeWindow:
+    """(px, py)'s window (``EdgeWindow``); ``on`` only with ``edges`` (the depth-aware sum, M > 1)."""
+    e = EdgeWindow()
+    e.t_hit = t_hit
+    e.x0 = window_start(px, width, block)
+    e.y0 = window_start(py, height, block)
+    e.width = width
+    e.tp = float(0.0)
+    e.on = 0
+    if edges != 0 and block > 1:
+        e.tp = t_hit[py * width + px]
+        for j in range(block):
+            for i in range(block):
+                if not same_depth(e.tp, t_hit[(e.y0 + j) * width + e.x0 + i], tolerance):
+                    e.on = 1
+    return e
+
+
+@wp.func
+def class_missing(e: EdgeWindow, block: int, tolerance: float, c: int) -> bool:
+    """Whether residue class c's pixel in the window lies at another depth than the pixel's own
+    (so the block sum leaves its samples out); never where the window is not ``on``."""
+    if e.on == 0:
+        return False
+    i = (c % block - e.x0 % block + block) % block
+    j = (c / block - e.y0 % block + block) % block
+    return not same_depth(e.tp, e.t_hit[(e.y0 + j) * e.width + e.x0 + i], tolerance)
+
+
+@wp.func
+def homogeneous_samples(m: Media, sl: ShadowedLights, ms: ScatteredLight, o: wp.vec3, d: wp.vec3, ta: float,
+                        tb: float, dl: float, k0: int, u: float, st: ShaftSettings, e: EdgeWindow):
+    """In closed-form media, the sum of a pixel's samples k = k0, k0 + M^2, ... (cells of length
+    ``dl`` from ``ta``, cut at ``tb``; a sample at ``u`` of its cell), and that of the residue
+    classes its window leaves out (``class_missing``), in one pass. Returns (its own, the missing)."""
+    stride = st.block * st.block
+    first = k0
+    step = stride
+    if e.on != 0:  # every step: the missing classes' samples too
+        first = 0
+        step = 1
+    acc = wp.vec3(0.0)
+    missing = wp.vec3(0.0)
+    for k in range(first, st.steps, step):
+        c0 = ta + float(k) * dl  # this sample's cell, cut at the surface
+        if c0 >= tb:
+            break
+        take = k % stride == k0
+        if take or class_missing(e, st.block, st.edge_tolerance, k % stride):
+            w = wp.min(1.0, (tb - c0) / dl) * dl
+            lk = c0 + u * w
+            x = o + lk * d
+            tau_v = homogeneous_optical_depth(m, o, d, 0.0, lk)
+            if take:
+                acc = add_sample(acc, m, sl, ms, o, d, c0, w, x, tau_v, st)
+            else:
+                missing = add_sample(missing, m, sl, ms, o, d, c0, w, x, tau_v, st)
+    return acc, missing
+
+
+@wp.func
+def heterogeneous_samples(m: Media, sl: ShadowedLights, ms: ScatteredLight, o: wp.vec3, d: wp.vec3, ta: float,
+                          tb: float, dl: float, k0: int, u: float, st: ShaftSettings, e: EdgeWindow):
+    """``homogeneous_samples`` where a medium is a grid: the optical depth from the camera is
+    accumulated at every one of the N steps, the lights are summed at this pixel's samples (and
+    its window's missing classes') only. Returns (its own, the missing, the optical depth from
+    the camera to ``tb``)."""
+    stride = st.block * st.block
+    acc = wp.vec3(0.0)
+    missing = wp.vec3(0.0)
+    tau = homogeneous_optical_depth(m, o, d, 0.0, ta)
+    for k in range(st.steps):
+        c0 = ta + float(k) * dl
+        if c0 >= tb:
+            break
+        w = wp.min(1.0, (tb - c0) / dl) * dl
+        lk = c0 + u * w
+        x = o + lk * d
+        sig = sigma_t_at(m, x, True)
+        take = k % stride == k0
+        if take or class_missing(e, st.block, st.edge_tolerance, k % stride):
+            tau_v = tau + homogeneous_optical_depth(m, o, d, ta, lk) + sig * (u * w)
+            if take:
+                acc = add_sample(acc, m, sl, ms, o, d, c0, w, x, tau_v, st)
+            else:
+                missing = add_sample(missing, m, sl, ms, o, d, c0, w, x, tau_v, st)
+        tau += sig * w
+    return acc, missing, tau
 
 
 @wp.kernel
@@ -386,7 +451,7 @@ def march_shafts(offset: int, cam: RasterView, m: Media, sl: ShadowedLights, seg
             t_end = b
         dl = (t_end - ta) / float(st.steps)
         k0 = px % st.block + st.block * (py % st.block)
-        stride = st.block * st.block
+        stride = st.block * st.block  # the interleaving's period
         if st.near > 0.0:
             # a ray passing a lamp within half a period of the interleaving (M^2 samples) has its
             # glow's peak in one residue class, which the block sum takes from one row of the
@@ -400,27 +465,19 @@ def march_shafts(offset: int, cam: RasterView, m: Media, sl: ShadowedLights, seg
             rng = wp.rand_init(st.seed, tid)
             u = wp.randf(rng)
         hetero = m.het_majorant[0] > 0.0 or m.het_majorant[1] > 0.0 or m.het_majorant[2] > 0.0
+        # the classes of the neighbours at another depth (the depth-aware sum leaves them out) are
+        # marched here, in the same pass
+        e = edge_window(t_hit, px, py, cam.width, cam.height, st.block, st.edge_tolerance, st.edges)
+        missing = wp.vec3(0.0)
         if not hetero:
-            acc = homogeneous_samples(m, sl, ms, o, d, ta, tb, dl, k0, stride, u, st)
+            acc, missing = homogeneous_samples(m, sl, ms, o, d, ta, tb, dl, k0, u, st, e)
         else:
-            acc, tau = heterogeneous_samples(m, sl, ms, o, d, ta, tb, dl, k0, stride, u, st)
+            acc, missing, tau = heterogeneous_samples(m, sl, ms, o, d, ta, tb, dl, k0, u, st, e)
             if st.has_depth == 0:  # the background through the optical depth this march summed
                 tau += homogeneous_optical_depth(m, o, d, ta, tb)
                 out.surface[tid] = wp.cw_mul(background, transmittance_rgb(tau))
                 background_done = True
-        if st.edges == 1 and stride > 1:  # the classes of the neighbours at another depth: marched here
-            x0 = window_start(px, cam.width, st.block)
-            y0 = window_start(py, cam.height, st.block)
-            tp = t_hit[tid]
-            for j in range(st.block):
-                for i in range(st.block):
-                    if not same_depth(tp, t_hit[(y0 + j) * cam.width + x0 + i], st.edge_tolerance):
-                        k = (x0 + i) % st.block + st.block * ((y0 + j) % st.block)
-                        if not hetero:
-                            own += homogeneous_samples(m, sl, ms, o, d, ta, tb, dl, k, stride, u, st)
-                        else:
-                            missing, tau_k = heterogeneous_samples(m, sl, ms, o, d, ta, tb, dl, k, stride, u, st)
-                            own += missing
+        own += missing
     if st.has_depth == 0 and not background_done:
         out.surface[tid] = wp.cw_mul(background, transmittance_rgb(marched_optical_depth(m, o, d, 0.0, b, st.steps)))
     out.partial[tid] = acc
