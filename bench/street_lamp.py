@@ -78,29 +78,16 @@ def main(argv=None) -> None:
                      "seconds": seconds, "block_min": float(ratio.min()), "block_max": float(ratio.max()),
                      "mean_ratio": float(image.mean() / truth.mean()), "error": wv.relative_rmse(image, truth)})
         print(f"{label}: blocks {ratio.min():.2f}..{ratio.max():.2f}, error {rows[-1]['error']:.3f}", flush=True)
-    r = wv.Renderer(street_lamp(), technique="raymarch", device="cpu")
-    means = [float(r.render().image.mean())]
-    for i in range(1, 13):
-        r.update(lights=[dict(type="point", position=[0.6 + 0.01 * i, 3.5, 0.0], intensity=[12.0, 9.0, 5.0])])
-        means.append(float(r.render().image.mean()))
-    m = np.array(means) / means[0]
-    motion = {"means": m.tolist(), "largest_step": float(np.abs(np.diff(m)).max()), "change": float(m[-1] - 1.0),
-              "reference_change": float(moved.mean() / truth.mean() - 1.0)}
-    print(f"moving lamp: largest step {motion['largest_step']:.4f}, change {motion['change']:+.4f} "
-          f"(reference {motion['reference_change']:+.4f})", flush=True)
-    r = wv.Renderer(street_lamp(), technique="raymarch", device="cpu")
-    means = [float(r.render().image.mean())]
-    for i in range(1, 13):
-        r.update(camera=dict(origin=[0.01 * i, 1.5, 8.0]))
-        means.append(float(r.render().image.mean()))
-    m = np.array(means) / means[0]
+    motion = moving(lambda r, i: r.update(lights=[dict(type="point", position=[0.6 + 0.01 * i, 3.5, 0.0],
+                                                       intensity=[12.0, 9.0, 5.0])]), moved.mean() / truth.mean() - 1.0)
     cam_end = street_lamp()
     cam_end["camera"]["origin"] = [0.12, 1.5, 8.0]
     cam_moved = wv.render(cam_end, "reference", device="cpu", spp=SPP, pixel_area=0, seed=3).image
-    camera = {"means": m.tolist(), "largest_step": float(np.abs(np.diff(m)).max()), "change": float(m[-1] - 1.0),
-              "reference_change": float(cam_moved.mean() / truth.mean() - 1.0)}
-    print(f"moving camera: largest step {camera['largest_step']:.4f}, change {camera['change']:+.4f} "
-          f"(reference {camera['reference_change']:+.4f})", flush=True)
+    camera = moving(lambda r, i: r.update(camera=dict(origin=[0.01 * i, 1.5, 8.0])),
+                    cam_moved.mean() / truth.mean() - 1.0)
+    for what, row in (("lamp", motion), ("camera", camera)):
+        print(f"moving {what}: largest step {row['largest_step']:.4f}, change {row['change']:+.4f} "
+              f"(reference {row['reference_change']:+.4f})", flush=True)
     noise = reference_noise(truth)
     doc = {"command": "PYTHONPATH=. .venv/bin/python -m bench.street_lamp", "device": device_name("cpu"),
            "warp": wp.config.version, "commit": git_commit(), "measured": time.strftime("%Y-%m-%d %H:%M:%S"),
@@ -108,6 +95,20 @@ def main(argv=None) -> None:
            "moving_camera": camera, "noise_spp": NOISE_SPP, "reference_noise": noise}
     (out / "data.json").write_text(json.dumps(doc, indent=1) + "\n")
     _readme(doc, out / "README.md")
+
+
+def moving(step, reference_change: float) -> dict:
+    """raymarch's frame means through one Renderer over 13 frames, ``step(renderer, i)`` moving
+    the scene before frame i = 1..12, each over the first frame's; their largest step and whole
+    change, beside the reference's change over the move."""
+    r = wv.Renderer(street_lamp(), technique="raymarch", device="cpu")
+    means = [float(r.render().image.mean())]
+    for i in range(1, 13):
+        step(r, i)
+        means.append(float(r.render().image.mean()))
+    m = np.array(means) / means[0]
+    return {"means": m.tolist(), "largest_step": float(np.abs(np.diff(m)).max()), "change": float(m[-1] - 1.0),
+            "reference_change": float(reference_change)}
 
 
 def reference_noise(truth: np.ndarray) -> list[dict]:

@@ -471,6 +471,17 @@ def street_lamp(x: float = 0.6) -> dict:
     return procedural.street_lamp(x, width=40, height=30)
 
 
+def moving_means(device, step) -> np.ndarray:
+    """raymarch's frame means on the street lamp through one Renderer, ``step(renderer, i)``
+    moving the scene before frames i = 1..12, each over the first frame's."""
+    r = wv.Renderer(street_lamp(), technique="raymarch", device=device)
+    means = [float(r.render().image.mean())]
+    for i in range(1, 13):
+        step(r, i)
+        means.append(float(r.render().image.mean()))
+    return np.array(means) / means[0]
+
+
 def test_a_lamps_arm_is_no_wall():
     """The lattice stops at walls that enclose the lights, not at a small surface just above a
     lamp: the street lamp's arm, 0.125 over it, cut the lattice at y = 3.575 and left the haze
@@ -489,12 +500,8 @@ def test_a_moving_lamp_keeps_its_light(device):
     answer barely changes (the haze is 20 wide); with the lattice cut at the arm it fell 12% (steps
     up to 2%). Bound: each step under 1%, the whole move under 3%, the lattice's interpolation
     weights shifting with the lamp by a cell's 0.4% a step."""
-    r = wv.Renderer(street_lamp(), technique="raymarch", device=device)
-    means = [float(r.render().image.mean())]
-    for i in range(1, 13):
-        r.update(lights=[dict(type="point", position=[0.6 + 0.01 * i, 3.5, 0.0], intensity=[12.0, 9.0, 5.0])])
-        means.append(float(r.render().image.mean()))
-    m = np.array(means) / means[0]
+    m = moving_means(device, lambda r, i: r.update(lights=[dict(type="point", position=[0.6 + 0.01 * i, 3.5, 0.0],
+                                                                intensity=[12.0, 9.0, 5.0])]))
     assert np.abs(np.diff(m)).max() < 0.01, m
     assert np.abs(m - 1.0).max() < 0.03, m
 
@@ -504,11 +511,6 @@ def test_a_moving_camera_keeps_the_lamps_light(device):
     the view bake re-run): the frame mean moves smoothly, as the physical answer does (the same
     haze from nearly the same place). Bound as for the moving lamp: each step under 1%, the whole
     move under 3%."""
-    r = wv.Renderer(street_lamp(), technique="raymarch", device=device)
-    means = [float(r.render().image.mean())]
-    for i in range(1, 13):
-        r.update(camera=dict(origin=[0.01 * i, 1.5, 8.0]))
-        means.append(float(r.render().image.mean()))
-    m = np.array(means) / means[0]
+    m = moving_means(device, lambda r, i: r.update(camera=dict(origin=[0.01 * i, 1.5, 8.0])))
     assert np.abs(np.diff(m)).max() < 0.01, m
     assert np.abs(m - 1.0).max() < 0.03, m

@@ -330,7 +330,8 @@ class NearLights:
                        work=float(NEAR_STEPS))
             self.rho[li] = rho
             self.L1.append(L1)
-            self.at.append((medium, np.asarray(light.position, np.float32), rho, r_max, np.asarray(sigma_t, np.float32)))
+            self.at.append((medium, np.asarray(light.position, np.float32), rho, r_max,
+                            np.asarray(sigma_t, np.float32)))
         self.field = self._field(media) if self.at else empty(device)
 
     def _field(self, media: Media) -> NearField:

@@ -630,8 +630,8 @@ class LightShafts(ShaftStages):
         out.own = self.buffers.scratch("own", npix, wp.vec3)
         t_hit = self.t_hit if has_depth else self.shadows.depth  # without surfaces: no edges, not read
         dev.launch(march_shafts, npix, [camera_view(pinhole(cam)), u.media.struct, self.shadows.lights(), self.segs,
-                                        t_hit, wp.vec3(*scene.background), st, self.multiple.struct(), out], self.device,
-                   work=self.pixel_work(st.steps / st.block**2, self._view_samples()))
+                                        t_hit, wp.vec3(*scene.background), st, self.multiple.struct(), out],
+                   self.device, work=self.pixel_work(st.steps / st.block**2, self._view_samples()))
         if st.block == 1 or not cfg["scattering"] or not scene.media:
             self.image = wp.empty(npix, dtype=wp.vec3, device=self.device)  # the frame's own: not reused
             dev.launch(add_images, npix, [out.surface, out.partial, out.own, self.image], self.device)
